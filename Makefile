@@ -1,0 +1,36 @@
+# dexaug: `make demo` runs the main job on its embedded default, `make test` runs the tests.
+# Both create .venv and install the project on first use (a fresh clone needs nothing else).
+
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+export MUJOCO_GL ?= egl
+
+.PHONY: demo test lint bench clean gl
+
+$(STAMP): pyproject.toml
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	touch $(STAMP)
+
+# Offscreen rendering needs an EGL or OSMesa library; install Debian's when we may (root, apt).
+gl:
+	@$(BIN)/python -c "import ctypes.util,sys; sys.exit(0 if ctypes.util.find_library('EGL') or ctypes.util.find_library('OSMesa') else 1)" 2>/dev/null \
+	  || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null \
+	       && (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libegl1 libosmesa6 >/dev/null) \
+	       || echo "note: no EGL/OSMesa library; rendering tests will be skipped"; }
+
+demo: $(STAMP)
+	$(BIN)/dexaug demo
+
+test: $(STAMP) gl
+	$(BIN)/ruff check .
+	$(BIN)/python -m pytest -q
+
+bench: $(STAMP)
+	$(BIN)/python benchmarks/bench_validate.py
+
+clean:
+	rm -rf $(VENV) .pytest_cache .ruff_cache

@@ -1,0 +1,5 @@
+import sys
+
+from dexaug.cli import main
+
+sys.exit(main())

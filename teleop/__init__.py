@@ -1,0 +1,2 @@
+"""Teleoperation: hand-tracking messages, ingest, the zenoh bridge, mink retargeting, MCAP
+recording and replay."""
