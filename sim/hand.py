@@ -63,8 +63,8 @@ class Hand:
         self.tip_site_ids = np.array([m.site(f.site_name).id for f in config.fingers])
         self.finger_qadr = {f.name: np.array([m.joint(j).qposadr[0] for j in f.joints])
                             for f in config.fingers}
-        self._coupling = [(m.joint(fol).qposadr[0], m.joint(lead).qposadr[0])
-                          for f in config.fingers for fol, lead in f.coupled_to.items()]
+        self._coupling = [(m.joint(fol).qposadr[0], m.joint(lead).qposadr[0], coef)
+                          for f in config.fingers for fol, (lead, coef) in f.coupled_to.items()]
 
     @classmethod
     def load(cls, name_or_path: str | Path) -> Hand:
@@ -134,10 +134,10 @@ class Hand:
         return arr
 
     def fill_coupled(self, q: np.ndarray) -> np.ndarray:
-        """Copy each coupled leader joint into its follower (the paper's FJ1 = FJ2)."""
+        """Set each coupled follower from its leader (the paper's FJ1 = FJ2)."""
         q = np.array(q, dtype=float)
-        for follower, leader in self._coupling:
-            q[..., follower] = q[..., leader]
+        for follower, leader, coef in self._coupling:
+            q[..., follower] = coef * q[..., leader]
         return q
 
     def clip(self, q: np.ndarray) -> np.ndarray:

@@ -35,7 +35,7 @@ class FingerConfig:
     tip_mesh: str
     links: tuple[str, ...]
     joints: tuple[str, ...]
-    coupled_to: dict[str, str]
+    coupled_to: dict[str, tuple[str, float]]
     v_f: np.ndarray
     v_u: np.ndarray
     tip_site_pos: np.ndarray
@@ -97,8 +97,17 @@ def _finger(sec: Section) -> FingerConfig:
     if not joints:
         raise sec.error("joints", "expected at least one joint")
     coupled_sec = sec.section("coupled_to", {})
-    coupled = {k: coupled_sec.str(k) for k in coupled_sec.data}
-    for follower, leader in coupled.items():
+    coupled: dict[str, tuple[str, float]] = {}
+    for key, value in coupled_sec.data.items():
+        if isinstance(value, str):
+            coupled[key] = (value, 1.0)
+        elif (isinstance(value, list) and len(value) == 2 and isinstance(value[0], str)
+              and isinstance(value[1], int | float) and not isinstance(value[1], bool)):
+            coupled[key] = (value[0], float(value[1]))
+        else:
+            raise coupled_sec.error(key, 'expected a leader joint name or [leader, coefficient], '
+                                    f'got {value!r}')
+    for follower, (leader, _) in coupled.items():
         if follower not in joints or leader not in joints:
             raise coupled_sec.error(follower, f"both {follower!r} and {leader!r} must be among "
                                     f"this finger's joints {list(joints)}")
@@ -166,7 +175,7 @@ def load_hand_config(name_or_path: str | Path) -> HandConfig:
         model_path=(path.parent / model_path).resolve() if model_path else None,
         root_body=model.str("root_body", None),
         palm=PalmConfig(body=palm.str("body"), pos=np.array(palm.floats("pos", 3, [0.0] * 3)),
-                        quat_wxyz=quat, box_center=np.array(palm.floats("box_center", 3, [0.0] * 3)),
+                        quat_wxyz=quat / np.linalg.norm(quat), box_center=np.array(palm.floats("box_center", 3, [0.0] * 3)),
                         box_half_extents=half),
         fingers=fingers,
         open_pose={k: open_sec.float(k) for k in open_sec.data},

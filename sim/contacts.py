@@ -1,0 +1,60 @@
+"""Hand–object contacts read out of a MuJoCo state, as arrays.
+
+Used by the validator (contact count, penetration, simulated grasp wrench space), the teleop
+recorder (fingertip contacts) and rendering. Normals are oriented from the hand into the object,
+i.e. the direction of the force the hand applies, whatever order MuJoCo stored the pair in.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Contacts:
+    """Contacts between two geom sets: world positions (N,3) metres, unit normals (N,3) from the
+    first set into the second, signed distances (N,) metres (negative = penetration), the
+    first-set body of each contact (N,), and normal forces (N,) newtons when requested."""
+
+    pos: np.ndarray
+    normal: np.ndarray
+    dist: np.ndarray
+    body_a: np.ndarray
+    force_n: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.dist)
+
+    @property
+    def max_penetration_m(self) -> float:
+        return float(max(0.0, -self.dist.min())) if len(self) else 0.0
+
+
+def contacts_between(model: mujoco.MjModel, data: mujoco.MjData, mask_a: np.ndarray,
+                     mask_b: np.ndarray, *, with_force: bool = False) -> Contacts:
+    """All contacts of ``data`` whose geoms are one in ``mask_a`` and one in ``mask_b``
+    (boolean masks over geoms)."""
+    n = data.ncon
+    if n == 0:
+        empty = np.zeros((0, 3))
+        return Contacts(empty, empty, np.zeros(0), np.zeros(0, int), np.zeros(0))
+    con = data.contact
+    geom = con.geom[:n]
+    a_first = mask_a[geom[:, 0]] & mask_b[geom[:, 1]]
+    b_first = mask_b[geom[:, 0]] & mask_a[geom[:, 1]]
+    sel = np.flatnonzero(a_first | b_first)
+    # MuJoCo's frame[0:3] points from geom[0] to geom[1]; flip where the pair is (b, a)
+    sign = np.where(a_first[sel], 1.0, -1.0)
+    normal = con.frame[sel, :3] * sign[:, None]
+    geom_a = np.where(a_first[sel], geom[sel, 0], geom[sel, 1])
+    force = np.zeros(len(sel))
+    if with_force:
+        buf = np.zeros(6)
+        for k, i in enumerate(sel):
+            mujoco.mj_contactForce(model, data, int(i), buf)
+            force[k] = buf[0]
+    return Contacts(pos=con.pos[sel].copy(), normal=normal, dist=con.dist[sel].copy(),
+                    body_a=model.geom_bodyid[geom_a], force_n=force)

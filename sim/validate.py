@@ -1,0 +1,404 @@
+"""Physical grasp validation in MuJoCo: the ``lift-drop`` and ``six-dir`` protocols (DESIGN §5).
+
+The augmenter only checks grasps analytically; a grasp is kept when it also holds in simulation.
+From a grasp (palm pose in the object frame + joint vector) the validator derives a pregrasp and
+a squeeze target itself: it finds the hand bodies near the object, and moves their closest
+points back along the contact normals (pregrasp) or into the object (squeeze) with damped
+least squares on the contact Jacobians, so it works for any hand without per-hand closing rules.
+Simulation is deterministic: the same grasp gives the same result on any worker.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from enum import StrEnum
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from sim.config import load_toml
+from sim.contacts import Contacts, contacts_between
+from sim.grasp import Grasp
+from sim.gws import gws_metrics
+from sim.hand import Hand
+from sim.objects import ContactParams, ObjectAsset
+from sim.paths import CONFIG_DIR
+from sim.scene import OBJECT_HOME, PhysicsOptions, Scene
+from sim.transforms import pose_inv, pose_mul, quat_angle, rotate
+
+PROTOCOLS = ("lift-drop", "six-dir")
+SIX_DIRECTIONS = {"+x": (1, 0, 0), "-x": (-1, 0, 0), "+y": (0, 1, 0), "-y": (0, -1, 0),
+                  "+z": (0, 0, 1), "-z": (0, 0, -1)}
+
+
+class Failure(StrEnum):
+    """Why a grasp failed, checked in this order."""
+
+    PENETRATION = "penetration"        # hand–object penetration above the limit before simulating
+    NO_CONTACT = "no_contact"          # no hand body near the object: a grasp on air
+    LOST_CONTACT = "lost_contact"      # fingers closed but nothing touches the object
+    SLIPPED = "slipped"                # object moved/rotated past the limits while lifted or pushed
+    STUCK = "stuck"                    # lift-drop: object stayed in the opened hand (interpenetration)
+
+
+@dataclass(frozen=True)
+class CommonParams:
+    max_penetration_m: float
+    contact_search_m: float
+    pregrasp_backoff_m: float
+    squeeze_depth_m: float
+    close_time_s: float
+    settle_time_s: float
+    contact: ContactParams
+    gws_mu: float
+
+
+@dataclass(frozen=True)
+class LiftDropParams:
+    timestep_s: float
+    lift_height_m: float
+    lift_time_s: float
+    hold_time_s: float
+    drop_time_s: float
+    max_displacement_m: float
+    max_rotation_rad: float
+    drop_min_fall_m: float
+
+
+@dataclass(frozen=True)
+class SixDirParams:
+    timestep_s: float
+    noslip_iterations: int
+    force_per_kg: float
+    push_time_s: float
+    max_displacement_m: float
+    max_rotation_rad: float
+
+
+@dataclass(frozen=True)
+class ValidateConfig:
+    common: CommonParams
+    lift_drop: LiftDropParams
+    six_dir: SixDirParams
+
+    @classmethod
+    def load(cls, path: Path | str = CONFIG_DIR / "validate.toml") -> ValidateConfig:
+        root = load_toml(path)
+        root.reject_unknown({"common", "lift_drop", "six_dir"})
+        c = root.section("common")
+        c.reject_unknown({"max_penetration_m", "contact_search_m", "pregrasp_backoff_m",
+                          "squeeze_depth_m", "close_time_s", "settle_time_s", "friction",
+                          "solref", "gws_mu"})
+        pos = {"min": 0.0}
+        common = CommonParams(
+            max_penetration_m=c.float("max_penetration_m", **pos),
+            contact_search_m=c.float("contact_search_m", **pos),
+            pregrasp_backoff_m=c.float("pregrasp_backoff_m", **pos),
+            squeeze_depth_m=c.float("squeeze_depth_m", **pos),
+            close_time_s=c.float("close_time_s", min=1e-3),
+            settle_time_s=c.float("settle_time_s", **pos),
+            contact=ContactParams(friction=tuple(c.floats("friction", 3)),
+                                  solref=tuple(c.floats("solref", 2))),
+            gws_mu=c.float("gws_mu", min=0.0))
+        ld = root.section("lift_drop")
+        ld.reject_unknown({"timestep_s", "lift_height_m", "lift_time_s", "hold_time_s",
+                           "drop_time_s", "max_displacement_m", "max_rotation_deg",
+                           "drop_min_fall_m"})
+        lift = LiftDropParams(
+            timestep_s=ld.float("timestep_s", min=1e-4, max=0.02),
+            lift_height_m=ld.float("lift_height_m", **pos), lift_time_s=ld.float("lift_time_s", min=1e-3),
+            hold_time_s=ld.float("hold_time_s", **pos), drop_time_s=ld.float("drop_time_s", **pos),
+            max_displacement_m=ld.float("max_displacement_m", **pos),
+            max_rotation_rad=np.deg2rad(ld.float("max_rotation_deg", min=0.0, max=180.0)),
+            drop_min_fall_m=ld.float("drop_min_fall_m", **pos))
+        sd = root.section("six_dir")
+        sd.reject_unknown({"timestep_s", "noslip_iterations", "force_per_kg", "push_time_s",
+                           "max_displacement_m", "max_rotation_deg"})
+        six = SixDirParams(
+            timestep_s=sd.float("timestep_s", min=1e-4, max=0.02),
+            noslip_iterations=sd.int("noslip_iterations", min=0),
+            force_per_kg=sd.float("force_per_kg", **pos), push_time_s=sd.float("push_time_s", **pos),
+            max_displacement_m=sd.float("max_displacement_m", **pos),
+            max_rotation_rad=np.deg2rad(sd.float("max_rotation_deg", min=0.0, max=180.0)))
+        return cls(common, lift, six)
+
+
+@dataclass
+class PhaseResult:
+    passed: bool
+    displacement_m: float
+    rotation_rad: float
+
+
+@dataclass
+class ValidationResult:
+    """Outcome of one grasp under one protocol. Metrics are NaN where the run stopped before
+    they could be measured (e.g. penetration rejects before simulating)."""
+
+    protocol: str
+    passed: bool
+    failure: str | None
+    penetration_m: float
+    n_contacts: int = 0
+    epsilon: float = float("nan")
+    volume: float = float("nan")
+    displacement_m: float = float("nan")
+    rotation_rad: float = float("nan")
+    phases: dict[str, PhaseResult] = field(default_factory=dict)
+    contact_pos_obj: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    contact_normal_obj: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+
+    def summary(self) -> dict[str, object]:
+        """Flat, JSON-friendly view (no arrays) for tables and logs."""
+        out = asdict(self)
+        out.pop("contact_pos_obj")
+        out.pop("contact_normal_obj")
+        out["phases"] = {k: asdict(v) for k, v in self.phases.items()}
+        return out
+
+
+@dataclass(frozen=True)
+class GraspTargets:
+    """Joint targets derived from a grasp: where to start, what the grasp was, where to squeeze."""
+
+    pregrasp: np.ndarray
+    grasp: np.ndarray
+    squeeze: np.ndarray
+    n_bodies_near: int
+
+
+class Validator:
+    """Validates grasps of one hand on one object; owns one scene per protocol (built lazily)."""
+
+    def __init__(self, hand: Hand, obj: ObjectAsset, config: ValidateConfig | None = None) -> None:
+        self.hand = hand
+        self.obj = obj
+        self.config = config or ValidateConfig.load()
+        self._scenes: dict[str, Scene] = {}
+        finger_joints = {j for f in hand.config.fingers for j in f.joints}
+        self._finger_mask = np.array([n in finger_joints for n in hand.joint_names])
+
+    def scene(self, protocol: str) -> Scene:
+        if protocol not in PROTOCOLS:
+            raise ValueError(f"unknown protocol {protocol!r}; expected one of {PROTOCOLS}")
+        if protocol not in self._scenes:
+            if protocol == "six-dir":
+                physics = PhysicsOptions(timestep_s=self.config.six_dir.timestep_s,
+                                         noslip_iterations=self.config.six_dir.noslip_iterations)
+            else:
+                physics = PhysicsOptions(timestep_s=self.config.lift_drop.timestep_s)
+            self._scenes[protocol] = Scene(self.hand, self.obj, contact=self.config.common.contact,
+                                           physics=physics)
+        return self._scenes[protocol]
+
+    # ------------------------------------------------------------------------------- set-up
+
+    def _place(self, scene: Scene, grasp: Grasp, q: np.ndarray) -> None:
+        """Reset the scene with the object at home and the hand at the grasp's palm pose."""
+        m, d = scene.model, scene.data
+        mujoco.mj_resetData(m, d)
+        obj_quat = np.array([1.0, 0.0, 0.0, 0.0])
+        scene.set_object_pose(OBJECT_HOME, obj_quat)
+        palm_pos, palm_quat = pose_mul(OBJECT_HOME, obj_quat, grasp.palm_pos, grasp.palm_quat_wxyz)
+        base_pos, base_quat = self.hand.base_pose_for_palm(palm_pos, palm_quat, q)
+        scene.set_hand_pose(base_pos, base_quat)
+        scene.set_hand_joints(q)
+        scene.set_hand_ctrl(q)
+        m.opt.gravity[:] = 0.0
+        mujoco.mj_forward(m, d)
+
+    def _hand_object_contacts(self, scene: Scene, with_force: bool = False) -> Contacts:
+        return contacts_between(scene.model, scene.data, scene.hand_geom_mask, scene.obj_geom_mask,
+                                with_force=with_force)
+
+    def derive_targets(self, scene: Scene, q: np.ndarray) -> GraspTargets:
+        """Pregrasp and squeeze joint vectors from the contacts near the placed grasp.
+
+        Object geoms get a temporary margin of ``contact_search_m`` so MuJoCo reports near
+        misses with their distance; per hand body the closest point is moved along its normal
+        (by distance − backoff for the pregrasp, distance + squeeze depth for the squeeze).
+        """
+        m, d, common = scene.model, scene.data, self.config.common
+        saved = m.geom_margin.copy()
+        m.geom_margin[scene.obj_geom_mask] = common.contact_search_m
+        mujoco.mj_collision(m, d)
+        near = self._hand_object_contacts(scene)
+        m.geom_margin[:] = saved
+        keep = near.dist <= common.contact_search_m
+        rows, gaps = [], []
+        jacp = np.zeros((3, m.nv))
+        for body in np.unique(near.body_a[keep]):
+            sel = np.flatnonzero(keep & (near.body_a == body))
+            i = sel[np.argmin(near.dist[sel])]
+            point = near.pos[i] - near.normal[i] * near.dist[i] / 2.0
+            mujoco.mj_jac(m, d, jacp, None, point, int(body))
+            rows.append(near.normal[i] @ jacp[:, scene.hand_dadr])
+            gaps.append(near.dist[i])
+        if not rows:
+            return GraspTargets(q, q, q, 0)
+        jac = np.array(rows) * self._finger_mask
+        gaps = np.array(gaps)
+        damping = 1e-4
+        solve = np.linalg.solve(jac @ jac.T + damping * np.eye(len(rows)), np.eye(len(rows)))
+        pinv = jac.T @ solve
+        pre = self.hand.clip(q + pinv @ (gaps - common.pregrasp_backoff_m))
+        squeeze = self.hand.clip(q + pinv @ (gaps + common.squeeze_depth_m))
+        return GraspTargets(pre, q, squeeze, len(rows))
+
+    def _relative_object_pose(self, scene: Scene) -> tuple[np.ndarray, np.ndarray]:
+        palm_pos, palm_quat = scene.palm_world_pose()
+        obj_pos, obj_quat = scene.object_pose()
+        inv_p, inv_q = pose_inv(palm_pos, palm_quat)
+        return pose_mul(inv_p, inv_q, obj_pos, obj_quat)
+
+    def _run(self, scene: Scene, seconds: float, ctrl_from: np.ndarray | None = None,
+             ctrl_to: np.ndarray | None = None) -> None:
+        """Step ``seconds`` of simulation, ramping hand controls linearly when given."""
+        m, d = scene.model, scene.data
+        steps = max(int(round(seconds / m.opt.timestep)), 0)
+        if ctrl_from is None:
+            mujoco.mj_step(m, d, nstep=steps) if steps else None
+            return
+        for k in range(steps):
+            alpha = (k + 1) / steps
+            d.ctrl[scene.hand_act] = (1 - alpha) * ctrl_from + alpha * ctrl_to
+            mujoco.mj_step(m, d)
+
+    def _close(self, scene: Scene, targets: GraspTargets) -> None:
+        """From the pregrasp, close the fingers onto the squeeze target with gravity off."""
+        scene.set_hand_joints(targets.pregrasp)
+        scene.set_hand_ctrl(targets.pregrasp)
+        mujoco.mj_forward(scene.model, scene.data)
+        common = self.config.common
+        ctrl_pre = self.hand.ctrl_for(targets.pregrasp)
+        ctrl_sq = self.hand.ctrl_for(targets.squeeze)
+        self._run(scene, common.close_time_s, ctrl_pre, ctrl_sq)
+        self._run(scene, common.settle_time_s)
+
+    def _measure_contacts(self, scene: Scene, result: ValidationResult) -> None:
+        """Contact count and the grasp wrench space of the simulated contacts (object frame)."""
+        con = self._hand_object_contacts(scene)
+        touching = con.dist <= 1e-4
+        result.n_contacts = int(touching.sum())
+        obj_pos, obj_quat = scene.object_pose()
+        inv_p, inv_q = pose_inv(obj_pos, obj_quat)
+        pts = inv_p + rotate(inv_q, con.pos[touching])
+        nrm = rotate(inv_q, con.normal[touching])
+        result.contact_pos_obj, result.contact_normal_obj = pts, nrm
+        metrics = gws_metrics(pts, nrm, mu=self.config.common.gws_mu, centre=self.obj.com_m,
+                              torque_scale_m=self.obj.max_radius_m)
+        result.epsilon, result.volume = metrics.epsilon, metrics.volume
+
+    # ---------------------------------------------------------------------------- protocols
+
+    def validate(self, grasp: Grasp, protocol: str = "lift-drop") -> ValidationResult:
+        """Validate one grasp; see the module docstring and DESIGN §5 for the protocols."""
+        q = self.hand.check_q(grasp.joints, "grasp joints")
+        if q.ndim != 1:
+            raise ValueError("validate() takes one grasp; use sim.batch for many")
+        scene = self.scene(protocol)
+        self._place(scene, grasp, q)
+        penetration = self._hand_object_contacts(scene).max_penetration_m
+        result = ValidationResult(protocol=protocol, passed=False, failure=None,
+                                  penetration_m=penetration)
+        if penetration > self.config.common.max_penetration_m:
+            result.failure = Failure.PENETRATION
+            return result
+        targets = self.derive_targets(scene, q)
+        if targets.n_bodies_near == 0:
+            result.failure = Failure.NO_CONTACT
+            return result
+        self._close(scene, targets)
+        self._measure_contacts(scene, result)
+        if result.n_contacts == 0:
+            result.failure = Failure.LOST_CONTACT
+            return result
+        if protocol == "lift-drop":
+            self._lift_drop(scene, targets, result)
+        else:
+            self._six_dir(scene, result)
+        return result
+
+    def _drift(self, scene: Scene, ref_pos: np.ndarray, ref_quat: np.ndarray) -> tuple[float, float]:
+        pos, quat = self._relative_object_pose(scene)
+        return float(np.linalg.norm(pos - ref_pos)), float(quat_angle(quat, ref_quat))
+
+    def _lift_drop(self, scene: Scene, targets: GraspTargets, result: ValidationResult) -> None:
+        m, d, p = scene.model, scene.data, self.config.lift_drop
+        ref_pos, ref_quat = self._relative_object_pose(scene)
+        start = d.mocap_pos[scene.mocap_id].copy()
+        m.opt.gravity[:] = (0.0, 0.0, -9.81)
+        lift_steps = max(int(round(p.lift_time_s / m.opt.timestep)), 1)
+        chunk = max(lift_steps // 50, 1)
+        ok = True
+        for k in range(0, lift_steps, chunk):
+            d.mocap_pos[scene.mocap_id] = start + [0, 0, p.lift_height_m * min(k + chunk, lift_steps)
+                                                   / lift_steps]
+            mujoco.mj_step(m, d, nstep=min(chunk, lift_steps - k))
+            disp, rot = self._drift(scene, ref_pos, ref_quat)
+            if disp > p.max_displacement_m or rot > p.max_rotation_rad:
+                ok = False
+                break
+        result.phases["lift"] = PhaseResult(ok, disp, rot)
+        if ok:
+            self._run(scene, p.hold_time_s)
+            disp, rot = self._drift(scene, ref_pos, ref_quat)
+            ok = disp <= p.max_displacement_m and rot <= p.max_rotation_rad
+            result.phases["hold"] = PhaseResult(ok, disp, rot)
+        result.displacement_m, result.rotation_rad = disp, rot
+        if not ok:
+            result.failure = Failure.SLIPPED
+            return
+        self._release(scene, targets, ref_pos, ref_quat, result)
+
+    def _release(self, scene: Scene, targets: GraspTargets, ref_pos: np.ndarray,
+                 ref_quat: np.ndarray, result: ValidationResult) -> None:
+        """Open the hand and pull the object out of the palm: a real grasp lets go.
+
+        Gravity is turned to point out of the palm face (frame_palm +y) while the fingers open
+        to the pregrasp and then to the hand's open pose, so a wrap grasp or a palm-up grasp
+        releases too; an object that stays put is held by interpenetration (DESIGN §5 drops
+        along world −z, which a palm-up grasp never passes; see the closing note).
+        """
+        m, p = scene.model, self.config.lift_drop
+        _, palm_quat = scene.palm_world_pose()
+        m.opt.gravity[:] = 9.81 * rotate(palm_quat, np.array([0.0, 1.0, 0.0]))
+        ctrl_sq = self.hand.ctrl_for(targets.squeeze)
+        ctrl_open = self.hand.ctrl_for(self.hand.open_pose)
+        self._run(scene, 0.5 * p.drop_time_s, ctrl_sq, ctrl_open)
+        self._run(scene, 0.5 * p.drop_time_s)
+        fall, _ = self._drift(scene, ref_pos, ref_quat)
+        dropped = fall >= p.drop_min_fall_m
+        result.phases["drop"] = PhaseResult(dropped, fall, float("nan"))
+        result.passed = dropped
+        result.failure = None if dropped else Failure.STUCK
+
+    def _six_dir(self, scene: Scene, result: ValidationResult) -> None:
+        m, d, p = scene.model, scene.data, self.config.six_dir
+        spec = mujoco.mjtState.mjSTATE_INTEGRATION
+        state = np.empty(mujoco.mj_stateSize(m, spec))
+        mujoco.mj_getState(m, d, state, spec)
+        ref_pos, ref_quat = self._relative_object_pose(scene)
+        force = p.force_per_kg * scene.obj_mass_kg
+        steps = max(int(round(p.push_time_s / m.opt.timestep)), 1)
+        chunk = max(steps // 20, 1)
+        worst = (0.0, 0.0)
+        all_ok = True
+        for name, direction in SIX_DIRECTIONS.items():
+            mujoco.mj_setState(m, d, state, spec)
+            d.xfrc_applied[scene.obj_body, :3] = force * np.asarray(direction, float)
+            ok = True
+            for k in range(0, steps, chunk):
+                mujoco.mj_step(m, d, nstep=min(chunk, steps - k))
+                disp, rot = self._drift(scene, ref_pos, ref_quat)
+                if disp > p.max_displacement_m or rot > p.max_rotation_rad:
+                    ok = False
+                    break
+            d.xfrc_applied[scene.obj_body] = 0.0
+            result.phases[name] = PhaseResult(ok, disp, rot)
+            worst = (max(worst[0], disp), max(worst[1], rot))
+            all_ok &= ok
+        result.displacement_m, result.rotation_rad = worst
+        result.passed = all_ok
+        result.failure = None if all_ok else Failure.SLIPPED

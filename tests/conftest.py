@@ -1,0 +1,32 @@
+"""Shared fixtures: assets resolve from ../shared/assets (or the env variables), and tests that
+need them skip cleanly where they are absent."""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+from sim.paths import SHARED_ASSETS, ensure_menagerie_root, ycb_root  # noqa: E402
+
+
+def _menagerie_available() -> bool:
+    root = ensure_menagerie_root()
+    return root is not None and (root / "shadow_hand").is_dir()
+
+
+needs_menagerie = pytest.mark.skipif(not _menagerie_available(),
+                                     reason=f"no Menagerie models (MENAGERIE_ROOT or {SHARED_ASSETS})")
+needs_ycb = pytest.mark.skipif(ycb_root(required=False) is None,
+                               reason=f"no YCB objects (DEXAUG_YCB_ROOT or {SHARED_ASSETS}/ycb)")
+
+
+@pytest.fixture(scope="session")
+def shadow():
+    from sim.hand import Hand
+
+    if not _menagerie_available():
+        pytest.skip("no Menagerie models")
+    return Hand.load("shadow_right")
