@@ -10,6 +10,7 @@ model's joints in model order (radians for hinges, metres for slides).
 from __future__ import annotations
 
 from functools import cached_property
+from itertools import pairwise
 from pathlib import Path
 
 import mujoco
@@ -117,8 +118,9 @@ class Hand:
                 need("body", f"{key}.links", b, bodies)
             for j in f.joints:
                 need("joint", f"{key}.joints", j, joints)
-        for name in cfg.open_pose:
-            need("joint", "grasp.open_pose", name, joints)
+        for posture, values in cfg.postures.items():
+            for name in values:
+                need("joint", f"grasp.{posture}", name, joints)
 
     # ----------------------------------------------------------------------------- joint vectors
 
@@ -143,12 +145,19 @@ class Hand:
     def clip(self, q: np.ndarray) -> np.ndarray:
         return np.clip(q, self.lower, self.upper)
 
+    def posture(self, name: str) -> np.ndarray:
+        """A named posture of the config's [grasp] table as a full joint vector (radians)."""
+        q = np.zeros(self.nq)
+        named = self.config.postures.get(name, {})
+        for joint, value in named.items():
+            q[self.model.joint(joint).qposadr[0]] = value
+        filled = self.fill_coupled(q)
+        keep = np.array([n in named for n in self.joint_names])
+        return self.clip(np.where(keep, q, filled))
+
     @cached_property
     def open_pose(self) -> np.ndarray:
-        q = np.zeros(self.nq)
-        for name, value in self.config.open_pose.items():
-            q[self.model.joint(name).qposadr[0]] = value
-        return self.clip(q)
+        return self.posture("open_pose")
 
     # ------------------------------------------------------------------------ forward kinematics
 
@@ -200,7 +209,7 @@ class Hand:
         tip_q = quat[:, ids[-1]]
         chain.append(pos[:, ids[-1]] + np.einsum("bij,j->bi", quat_to_mat(tip_q), f.tip_site_pos))
         pts = []
-        for a, b in zip(chain[:-1], chain[1:], strict=True):
+        for a, b in pairwise(chain):
             n = max(int(np.ceil(np.max(np.linalg.norm(b - a, axis=-1)) / spacing_m)), 1)
             t = np.linspace(0.0, 1.0, n, endpoint=False)
             pts.append(a[:, None] + t[None, :, None] * (b - a)[:, None])

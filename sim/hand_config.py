@@ -18,6 +18,7 @@ from sim.errors import ConfigError
 from sim.paths import CONFIG_DIR
 
 HANDS_DIR = CONFIG_DIR / "hands"
+POSTURES = ("open_pose", "preshape_pose", "close_pose")
 
 
 @dataclass(frozen=True)
@@ -72,7 +73,7 @@ class HandConfig:
     root_body: str | None
     palm: PalmConfig
     fingers: tuple[FingerConfig, ...]
-    open_pose: dict[str, float] = field(default_factory=dict)
+    postures: dict[str, dict[str, float]] = field(default_factory=dict)
 
     def finger(self, name: str) -> FingerConfig:
         for f in self.fingers:
@@ -168,15 +169,19 @@ def load_hand_config(name_or_path: str | Path) -> HandConfig:
     if len(set(names)) != len(names):
         raise root.error("fingers", f"finger names must be unique, got {names}")
     grasp = root.section("grasp", {})
-    grasp.reject_unknown({"open_pose"})
-    open_sec = grasp.section("open_pose", {})
+    grasp.reject_unknown(set(POSTURES))
+    postures = {}
+    for key in POSTURES:
+        sec = grasp.section(key, {})
+        postures[key] = {k: sec.float(k) for k in sec.data}
     return HandConfig(
         name=path.stem, file=path, menagerie=menagerie, entry=model.str("entry", None),
         model_path=(path.parent / model_path).resolve() if model_path else None,
         root_body=model.str("root_body", None),
         palm=PalmConfig(body=palm.str("body"), pos=np.array(palm.floats("pos", 3, [0.0] * 3)),
-                        quat_wxyz=quat / np.linalg.norm(quat), box_center=np.array(palm.floats("box_center", 3, [0.0] * 3)),
+                        quat_wxyz=quat / np.linalg.norm(quat),
+                        box_center=np.array(palm.floats("box_center", 3, [0.0] * 3)),
                         box_half_extents=half),
         fingers=fingers,
-        open_pose={k: open_sec.float(k) for k in open_sec.data},
+        postures=postures,
     )

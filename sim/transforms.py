@@ -62,13 +62,13 @@ def mat_to_quat(m: Array) -> Array:
                  (r[:, 1, 0] - r[:, 0, 1]) / s]
         else:
             i = case - 1
-            j, l = (i + 1) % 3, (i + 2) % 3
-            s = 2.0 * np.sqrt(1.0 + r[:, i, i] - r[:, j, j] - r[:, l, l])
+            j, k2 = (i + 1) % 3, (i + 2) % 3
+            s = 2.0 * np.sqrt(1.0 + r[:, i, i] - r[:, j, j] - r[:, k2, k2])
             q = [None] * 4
-            q[0] = (r[:, l, j] - r[:, j, l]) / s
+            q[0] = (r[:, k2, j] - r[:, j, k2]) / s
             q[1 + i] = 0.25 * s
             q[1 + j] = (r[:, j, i] + r[:, i, j]) / s
-            q[1 + l] = (r[:, l, i] + r[:, i, l]) / s
+            q[1 + k2] = (r[:, k2, i] + r[:, i, k2]) / s
         out[sel] = np.stack(q, axis=1)
     out *= np.where(out[:, :1] < 0, -1.0, 1.0)
     return out.reshape(*m.shape[:-2], 4)

@@ -256,7 +256,7 @@ class Validator:
              ctrl_to: np.ndarray | None = None) -> None:
         """Step ``seconds`` of simulation, ramping hand controls linearly when given."""
         m, d = scene.model, scene.data
-        steps = max(int(round(seconds / m.opt.timestep)), 0)
+        steps = max(round(seconds / m.opt.timestep), 0)
         if ctrl_from is None:
             mujoco.mj_step(m, d, nstep=steps) if steps else None
             return
@@ -320,6 +320,19 @@ class Validator:
             self._six_dir(scene, result)
         return result
 
+    def render(self, grasp: Grasp, width: int = 640, height: int = 480) -> np.ndarray:
+        """RGB image of the grasp after closing (lift-drop scene), contacts marked."""
+        from sim.render import render_scene
+
+        q = self.hand.check_q(grasp.joints, "grasp joints")
+        scene = self.scene("lift-drop")
+        self._place(scene, grasp, q)
+        targets = self.derive_targets(scene, q)
+        if targets.n_bodies_near:
+            self._close(scene, targets)
+        obj_pos, _ = scene.object_pose()
+        return render_scene(scene.model, scene.data, lookat=obj_pos, width=width, height=height)
+
     def _drift(self, scene: Scene, ref_pos: np.ndarray, ref_quat: np.ndarray) -> tuple[float, float]:
         pos, quat = self._relative_object_pose(scene)
         return float(np.linalg.norm(pos - ref_pos)), float(quat_angle(quat, ref_quat))
@@ -329,12 +342,12 @@ class Validator:
         ref_pos, ref_quat = self._relative_object_pose(scene)
         start = d.mocap_pos[scene.mocap_id].copy()
         m.opt.gravity[:] = (0.0, 0.0, -9.81)
-        lift_steps = max(int(round(p.lift_time_s / m.opt.timestep)), 1)
+        lift_steps = max(round(p.lift_time_s / m.opt.timestep), 1)
         chunk = max(lift_steps // 50, 1)
         ok = True
         for k in range(0, lift_steps, chunk):
-            d.mocap_pos[scene.mocap_id] = start + [0, 0, p.lift_height_m * min(k + chunk, lift_steps)
-                                                   / lift_steps]
+            rise = p.lift_height_m * min(k + chunk, lift_steps) / lift_steps
+            d.mocap_pos[scene.mocap_id] = start + np.array([0.0, 0.0, rise])
             mujoco.mj_step(m, d, nstep=min(chunk, lift_steps - k))
             disp, rot = self._drift(scene, ref_pos, ref_quat)
             if disp > p.max_displacement_m or rot > p.max_rotation_rad:
@@ -381,7 +394,7 @@ class Validator:
         mujoco.mj_getState(m, d, state, spec)
         ref_pos, ref_quat = self._relative_object_pose(scene)
         force = p.force_per_kg * scene.obj_mass_kg
-        steps = max(int(round(p.push_time_s / m.opt.timestep)), 1)
+        steps = max(round(p.push_time_s / m.opt.timestep), 1)
         chunk = max(steps // 20, 1)
         worst = (0.0, 0.0)
         all_ok = True

@@ -9,7 +9,7 @@ import pytest
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-from sim.paths import SHARED_ASSETS, ensure_menagerie_root, ycb_root  # noqa: E402
+from sim.paths import SHARED_ASSETS, ensure_menagerie_root, ycb_root
 
 
 def _menagerie_available() -> bool:

@@ -85,7 +85,8 @@ def test_wrong_length_joint_vector_is_a_clear_error(shadow: Hand) -> None:
 
 @needs_menagerie
 def test_unknown_joint_in_config_names_file_and_joint(tmp_path: Path) -> None:
-    text = (HANDS_DIR / "shadow_right.toml").read_text().replace('"rh_FFJ3"', '"rh_FFJ9"', 1).replace('rh_FFJ3 = [20, 50], ', '')
+    text = (HANDS_DIR / "shadow_right.toml").read_text()
+    text = text.replace('"rh_FFJ3"', '"rh_FFJ9"', 1).replace("rh_FFJ3 = [20, 50], ", "")
     bad = tmp_path / "bad_hand.toml"
     bad.write_text(text)
     with pytest.raises(ConfigError, match=r"bad_hand\.toml.*unknown joint 'rh_FFJ9'"):

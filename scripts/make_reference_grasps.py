@@ -1,0 +1,51 @@
+"""Rebuild ``configs/grasps/shadow_right.toml``: hand-built Shadow Hand grasps on YCB objects.
+
+Each grasp is made the way a person would: put the palm against the object, close the fingers
+until they stop (sim.closing), and store what the hand ended up with. Run:
+``.venv/bin/python scripts/make_reference_grasps.py``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from sim.objects import load_object
+
+from sim.closing import close_on_object
+from sim.hand import Hand
+from sim.io import write_bytes_atomic
+from sim.reference_grasps import GRASPS_DIR
+from sim.scene import Scene
+from sim.transforms import mat_to_quat
+
+# (name, object, palm position in the object frame (m), palm axes as columns x, y, z in the
+#  object frame, note)
+SPECS = [
+    ("can_side_wrap", "005_tomato_soup_can", [-0.045, 0.0, -0.05],
+     [[0, -1, 0], [1, 0, 0], [0, 0, 1]], "five-finger wrap around the can's side, palm on -x"),
+    ("box_side_wrap", "004_sugar_box", [-0.042, 0.0, -0.06],
+     [[0, -1, 0], [1, 0, 0], [0, 0, 1]], "five-finger wrap of the box's narrow side, palm on -x"),
+]
+
+
+def main() -> None:
+    hand = Hand.load("shadow_right")
+    lines = ["# Hand-built reference grasps of the Shadow Hand (ground truth for the validator).",
+             "# Made by scripts/make_reference_grasps.py: palm placed by hand, fingers closed",
+             "# in MuJoCo until they stop on the held-still object. Radians and metres; palm pose",
+             "# = frame_palm in the object frame, quaternion w, x, y, z.", ""]
+    for name, obj_name, pos, axes, note in SPECS:
+        scene = Scene(hand, load_object(obj_name))
+        quat = mat_to_quat(np.array(axes, float).T)
+        grasp = close_on_object(scene, np.array(pos, float), quat, hand.posture("preshape_pose"),
+                                hand.posture("close_pose"))
+        joints = ", ".join(f"{n} = {v:.4f}" for n, v in zip(hand.joint_names, grasp.joints,
+                                                           strict=True))
+        lines += ["[[grasps]]", f'name = "{name}"', f'object = "{obj_name}"', f'note = "{note}"',
+                  f"palm_pos = [{', '.join(f'{v:.5f}' for v in grasp.palm_pos)}]",
+                  f"palm_quat_wxyz = [{', '.join(f'{v:.6f}' for v in grasp.palm_quat_wxyz)}]",
+                  f"joints = {{ {joints} }}", ""]
+    write_bytes_atomic(GRASPS_DIR / "shadow_right.toml", "\n".join(lines).encode())
+
+
+if __name__ == "__main__":
+    main()
