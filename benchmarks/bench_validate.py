@@ -1,0 +1,65 @@
+"""Validator throughput: validations per second for lift-drop and six-dir.
+
+Workload: for each object, the hand's reference grasps (configs/grasps/<hand>.toml) plus random
+perturbations of them (palm ±5 mm / ±5°, joints ±0.05 rad), so passes and the usual failures
+(penetration, slipping, lost contact) are all in the mix. Prints one Markdown table.
+
+    .venv/bin/python benchmarks/bench_validate.py [--hand shadow_right] [--n 40] [--objects 004_sugar_box 024_bowl]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from sim.batch import validate_many
+from sim.grasp import Grasp
+from sim.hand import Hand
+from sim.reference_grasps import load_reference_grasps
+
+
+def perturbed(hand: Hand, base: list[Grasp], n: int, seed: int) -> list[Grasp]:
+    rng = np.random.default_rng(seed)
+    out = list(base)
+    while len(out) < n:
+        g = base[rng.integers(len(base))]
+        rot = Rotation.from_rotvec(rng.normal(0, np.deg2rad(5) / np.sqrt(3), 3))
+        quat = (rot * Rotation.from_quat(g.palm_quat_wxyz, scalar_first=True)).as_quat(
+            scalar_first=True)
+        q = hand.clip(g.joints + rng.uniform(-0.05, 0.05, hand.nq))
+        out.append(Grasp.from_arrays(g.palm_pos + rng.uniform(-0.005, 0.005, 3), quat, q))
+    return out[:n]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--hand", default="shadow_right")
+    parser.add_argument("--n", type=int, default=40, help="grasps per object")
+    parser.add_argument("--objects", nargs="+", default=["004_sugar_box", "024_bowl"])
+    parser.add_argument("--workers", type=int, nargs="+", default=[1, 2])
+    args = parser.parse_args()
+    hand = Hand.load(args.hand)
+    refs = load_reference_grasps(hand)
+    print("| object | protocol | workers | grasps | pass | validations/s | per core |")
+    print("| --- | --- | --- | --- | --- | --- | --- |")
+    for obj in args.objects:
+        base = [r.grasp for r in refs if r.object == obj]
+        if not base:
+            print(f"| {obj} | no reference grasps | | | | | |")
+            continue
+        grasps = perturbed(hand, base, args.n, seed=0)
+        for protocol in ("lift-drop", "six-dir"):
+            for workers in args.workers:
+                start = time.perf_counter()
+                results = validate_many(args.hand, obj, grasps, protocol, workers=workers)
+                rate = len(grasps) / (time.perf_counter() - start)
+                passed = sum(r.passed for r in results)
+                print(f"| {obj} | {protocol} | {workers} | {len(grasps)} | {passed} | "
+                      f"{rate:.1f} | {rate / workers:.1f} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
