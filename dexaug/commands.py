@@ -144,6 +144,10 @@ def validate(args: argparse.Namespace, console: Console) -> int:
     penetration, object displacement and rotation, and the GWS ε/volume of the simulated contacts.
     """
     protocols = ("lift-drop", "six-dir") if args.protocol == "both" else (args.protocol,)
+    if args.render:
+        from sim.render import select_gl_backend
+
+        select_gl_backend()
     return run_reference_validation(args.hand, console, object_name=args.object,
                                     grasps_path=args.grasps, protocols=protocols,
                                     render_dir=args.render, json_path=args.json)

@@ -19,7 +19,8 @@ def close_on_object(scene: Scene, palm_pos: np.ndarray, palm_quat: np.ndarray,
                     q_open: np.ndarray, q_closed: np.ndarray, *, close_time_s: float = 1.0,
                     hold_time_s: float = 0.6) -> Grasp:
     """Place frame_palm at (palm_pos, palm_quat) in the object frame with joints ``q_open``,
-    ramp the controls to ``q_closed`` over ``close_time_s``, hold, and read the grasp back."""
+    ramp the controls to ``q_closed`` over ``close_time_s``, hold, relax the actuators to where
+    the fingers stopped, and read the grasp back."""
     m, d, hand = scene.model, scene.data, scene.hand
     mujoco.mj_resetData(m, d)
     home_quat = np.array([1.0, 0.0, 0.0, 0.0])
@@ -33,6 +34,11 @@ def close_on_object(scene: Scene, palm_pos: np.ndarray, palm_quat: np.ndarray,
     for k in range(ramp + int(hold_time_s / m.opt.timestep)):
         alpha = min((k + 1) / ramp, 1.0)
         scene.set_hand_ctrl((1 - alpha) * q_open + alpha * q_closed)
+        mujoco.mj_step(m, d)
+        scene.set_object_pose(OBJECT_HOME, home_quat)
+    # relax: command where the fingers stopped, so the grasp is stored touching, not squeezing
+    scene.set_hand_ctrl(d.qpos[scene.hand_qadr].copy())
+    for _ in range(max(int(0.2 / m.opt.timestep), 1)):
         mujoco.mj_step(m, d)
         scene.set_object_pose(OBJECT_HOME, home_quat)
     mujoco.mj_forward(m, d)

@@ -8,12 +8,20 @@ from __future__ import annotations
 
 import os
 from functools import cache
+from typing import TYPE_CHECKING
 
 import cv2
-import mujoco
 import numpy as np
 
+from sim.errors import DexaugError
 from sim.io import write_bytes_atomic
+
+if TYPE_CHECKING:
+    import mujoco
+
+
+class RenderError(DexaugError):
+    """Offscreen rendering is not possible on this machine."""
 
 
 @cache
@@ -38,18 +46,24 @@ def gl_available() -> str | None:
     return None
 
 
+def select_gl_backend() -> str:
+    """Set ``MUJOCO_GL`` to a working backend; call before MuJoCo is first imported (MuJoCo
+    reads the variable once, at import)."""
+    backend = gl_available()
+    if backend is None:
+        raise RenderError("no OpenGL backend for offscreen rendering (tried MUJOCO_GL=egl and "
+                          "osmesa); install Debian's libegl1 or libosmesa6")
+    os.environ["MUJOCO_GL"] = backend
+    return backend
+
+
 def render_scene(model: mujoco.MjModel, data: mujoco.MjData, *, lookat: np.ndarray,
                  distance_m: float = 0.35, azimuth_deg: float = 135.0,
                  elevation_deg: float = -25.0, width: int = 640, height: int = 480,
                  show_contacts: bool = True) -> np.ndarray:
     """RGB image (H, W, 3) uint8 of the current state from a free camera aimed at ``lookat``.
     Contact points and contact forces are drawn by MuJoCo when ``show_contacts``."""
-    if os.environ.get("MUJOCO_GL") is None:
-        backend = gl_available()
-        if backend is None:
-            raise RuntimeError("no OpenGL backend for offscreen rendering (tried MUJOCO_GL=egl "
-                               "and osmesa); install libegl1 or libosmesa6")
-        os.environ["MUJOCO_GL"] = backend
+    import mujoco  # deferred: MUJOCO_GL must be chosen before MuJoCo's first import
     cam = mujoco.MjvCamera()
     cam.type = mujoco.mjtCamera.mjCAMERA_FREE
     cam.lookat[:] = lookat
@@ -60,7 +74,7 @@ def render_scene(model: mujoco.MjModel, data: mujoco.MjData, *, lookat: np.ndarr
     model.vis.scale.contactwidth = 0.08
     model.vis.scale.contactheight = 0.02
     model.vis.scale.forcewidth = 0.03
-    model.vis.map.force = 0.02
+    model.vis.map.force = 0.002  # metres of arrow per newton
     with mujoco.Renderer(model, height, width) as renderer:
         renderer.update_scene(data, cam, scene_option=opt)
         return renderer.render().copy()
