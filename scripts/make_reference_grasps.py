@@ -17,13 +17,16 @@ from sim.reference_grasps import GRASPS_DIR
 from sim.scene import Scene
 from sim.transforms import mat_to_quat
 
-# (name, object, palm position in the object frame (m), palm axes as columns x, y, z in the
-#  object frame, note)
+# (name, object, palm position in the object frame (m), frame_palm's x, y, z axes expressed in
+#  the object frame, note). The placements were chosen by trying palm sides, finger directions
+#  and heights around each object and keeping ones that hold under both protocols.
 SPECS = [
-    ("can_side_wrap", "005_tomato_soup_can", [-0.045, 0.0, -0.05],
-     [[0, -1, 0], [1, 0, 0], [0, 0, 1]], "five-finger wrap around the can's side, palm on -x"),
-    ("box_side_wrap", "004_sugar_box", [-0.042, 0.0, -0.06],
-     [[0, -1, 0], [1, 0, 0], [0, 0, 1]], "five-finger wrap of the box's narrow side, palm on -x"),
+    ("can_side_wrap", "005_tomato_soup_can", [0.001, 0.046, 0.109],
+     [[1, 0, 0], [0, -1, 0], [0, 0, -1]],
+     "palm on the can's +y side near the top, fingers pointing down and wrapping around it"),
+    ("box_edge_wrap", "004_sugar_box", [-0.027, -0.076, 0.168],
+     [[-1, 0, 0], [0, 1, 0], [0, 0, -1]],
+     "palm on the box's narrow -y face near the top, fingers pointing down and around the edges"),
 ]
 
 

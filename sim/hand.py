@@ -85,6 +85,17 @@ class Hand:
             spec = mujoco.MjSpec.from_file(str(self.model_path))
         except Exception as exc:
             raise AssetError(f"{self.model_path}: MuJoCo cannot load the hand model: {exc}") from None
+        if self.config.root_body:
+            root = spec.body(self.config.root_body)
+            if root is None:
+                raise ConfigError(f"{self.config.file}: model.root_body: no body "
+                                  f"{self.config.root_body!r} in {self.model_path.name}")
+            # bodies above the root (a forearm, a mounting plate) keep their kinematics but lose
+            # their geoms: the floating hand starts at the root body
+            kept = {root.name} | {b.name for b in root.find_all(mujoco.mjtObj.mjOBJ_BODY)}
+            for geom in list(spec.geoms):
+                if geom.parent.name not in kept:
+                    spec.delete(geom)
         for finger in self.config.fingers:
             body = spec.body(finger.tip_body)
             if body is None:

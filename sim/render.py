@@ -62,7 +62,7 @@ def render_scene(model: mujoco.MjModel, data: mujoco.MjData, *, lookat: np.ndarr
                  elevation_deg: float = -25.0, width: int = 640, height: int = 480,
                  show_contacts: bool = True) -> np.ndarray:
     """RGB image (H, W, 3) uint8 of the current state from a free camera aimed at ``lookat``.
-    Contact points and contact forces are drawn by MuJoCo when ``show_contacts``."""
+    Contact points are drawn by MuJoCo when ``show_contacts``."""
     import mujoco  # deferred: MUJOCO_GL must be chosen before MuJoCo's first import
     cam = mujoco.MjvCamera()
     cam.type = mujoco.mjtCamera.mjCAMERA_FREE
@@ -70,7 +70,7 @@ def render_scene(model: mujoco.MjModel, data: mujoco.MjData, *, lookat: np.ndarr
     cam.distance, cam.azimuth, cam.elevation = distance_m, azimuth_deg, elevation_deg
     opt = mujoco.MjvOption()
     opt.flags[mujoco.mjtVisFlag.mjVIS_CONTACTPOINT] = show_contacts
-    opt.flags[mujoco.mjtVisFlag.mjVIS_CONTACTFORCE] = show_contacts
+    opt.flags[mujoco.mjtVisFlag.mjVIS_CONTACTFORCE] = False
     model.vis.scale.contactwidth = 0.08
     model.vis.scale.contactheight = 0.02
     model.vis.scale.forcewidth = 0.03

@@ -357,7 +357,7 @@ class Validator:
         if ok:
             self._run(scene, p.hold_time_s)
             disp, rot = self._drift(scene, ref_pos, ref_quat)
-            ok = disp <= p.max_displacement_m and rot <= p.max_rotation_rad
+            ok = bool(disp <= p.max_displacement_m and rot <= p.max_rotation_rad)
             result.phases["hold"] = PhaseResult(ok, disp, rot)
         result.displacement_m, result.rotation_rad = disp, rot
         if not ok:
@@ -380,16 +380,16 @@ class Validator:
         ctrl_sq = self.hand.ctrl_for(targets.squeeze)
         ctrl_open = self.hand.ctrl_for(self.hand.open_pose)
         self._run(scene, 0.5 * p.drop_time_s, ctrl_sq, ctrl_open)
-        fall, _ = self._drift(scene, ref_pos, ref_quat)
+        fall, turn = self._drift(scene, ref_pos, ref_quat)
         steps = round(0.5 * p.drop_time_s / m.opt.timestep)
         chunk = max(steps // 10, 1)
         for k in range(0, steps, chunk):  # stop as soon as the object has left
             if fall >= p.drop_min_fall_m:
                 break
             mujoco.mj_step(m, scene.data, nstep=min(chunk, steps - k))
-            fall, _ = self._drift(scene, ref_pos, ref_quat)
-        dropped = fall >= p.drop_min_fall_m
-        result.phases["drop"] = PhaseResult(dropped, fall, float("nan"))
+            fall, turn = self._drift(scene, ref_pos, ref_quat)
+        dropped = bool(fall >= p.drop_min_fall_m)
+        result.phases["drop"] = PhaseResult(dropped, fall, turn)
         result.passed = dropped
         result.failure = None if dropped else Failure.STUCK
 

@@ -1,0 +1,121 @@
+"""Grasp validator ground truth: hand-built grasps hold under both protocols; an open hand
+beside the object, a grasp on air and a deeply interpenetrating grasp fail, each for its reason."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sim.errors import ConfigError, GraspInputError
+from sim.grasp import Grasp
+from sim.hand import Hand
+from sim.objects import load_object
+from sim.reference_grasps import load_reference_grasps
+from sim.transforms import rotate
+from sim.validate import Failure, ValidateConfig, Validator
+from tests.conftest import needs_menagerie, needs_ycb
+
+pytestmark = [needs_menagerie, needs_ycb]
+OBJECTS = ["005_tomato_soup_can", "004_sugar_box"]
+
+
+@pytest.fixture(scope="module")
+def validators(shadow: Hand) -> dict[str, Validator]:
+    return {name: Validator(shadow, load_object(name)) for name in OBJECTS}
+
+
+@pytest.fixture(scope="module")
+def references(shadow: Hand) -> dict[str, Grasp]:
+    refs = load_reference_grasps(shadow)
+    return {obj: next(r.grasp for r in refs if r.object == obj) for obj in OBJECTS}
+
+
+def _shifted(grasp: Grasp, along_palm_y_m: float, joints: np.ndarray | None = None) -> Grasp:
+    """The grasp with the palm moved along its own normal (+ = toward the object)."""
+    normal = rotate(grasp.palm_quat_wxyz, np.array([0.0, 1.0, 0.0]))
+    return Grasp.from_arrays(grasp.palm_pos + along_palm_y_m * normal, grasp.palm_quat_wxyz,
+                             grasp.joints if joints is None else joints)
+
+
+@pytest.mark.parametrize("obj", OBJECTS)
+@pytest.mark.parametrize("protocol", ["lift-drop", "six-dir"])
+def test_hand_built_grasp_holds(validators, references, obj: str, protocol: str) -> None:
+    result = validators[obj].validate(references[obj], protocol)
+    assert result.passed, result.summary()
+    assert result.failure is None
+    assert result.n_contacts >= 3
+    assert result.penetration_m < 0.005
+    assert result.epsilon > 0.0  # the simulated contacts are force-closure
+    assert result.volume > 0.0
+
+
+@pytest.mark.parametrize("obj", OBJECTS)
+def test_open_hand_beside_object_slips(validators, references, shadow: Hand, obj: str) -> None:
+    # open fingers, palm 5 mm closer than in the grasp so that it touches the object: the hand is
+    # near enough to be simulated, but nothing encloses the object
+    beside = _shifted(references[obj], 0.005, joints=shadow.open_pose)
+    result = validators[obj].validate(beside, "lift-drop")
+    assert not result.passed
+    assert result.failure in (Failure.SLIPPED, Failure.LOST_CONTACT), result.summary()
+
+
+@pytest.mark.parametrize("obj", OBJECTS)
+def test_grasp_on_air_has_no_contact(validators, references, obj: str) -> None:
+    far = Grasp.from_arrays(references[obj].palm_pos + np.array([0.5, 0.0, 0.0]),
+                            references[obj].palm_quat_wxyz, references[obj].joints)
+    result = validators[obj].validate(far, "lift-drop")
+    assert (result.passed, result.failure) == (False, Failure.NO_CONTACT)
+
+
+@pytest.mark.parametrize("obj", OBJECTS)
+def test_deep_interpenetration_is_rejected_before_simulating(validators, references,
+                                                             obj: str) -> None:
+    inside = _shifted(references[obj], 0.03)
+    result = validators[obj].validate(inside, "six-dir")
+    assert (result.passed, result.failure) == (False, Failure.PENETRATION)
+    assert result.penetration_m > 0.005
+    assert result.phases == {}  # nothing was simulated
+
+
+def _key(result) -> str:
+    """A comparable form of a result (NaN metrics compare equal as text)."""
+    return json.dumps(result.summary(), default=str, sort_keys=True)
+
+
+def test_validation_is_deterministic(validators, references) -> None:
+    a = validators["005_tomato_soup_can"].validate(references["005_tomato_soup_can"])
+    b = validators["005_tomato_soup_can"].validate(references["005_tomato_soup_can"])
+    assert _key(a) == _key(b)
+
+
+def test_batch_matches_serial_and_keeps_order(references) -> None:
+    from sim.batch import validate_many
+
+    obj = "005_tomato_soup_can"
+    grasps = [references[obj], _shifted(references[obj], 0.5), references[obj]]
+    serial = validate_many("shadow_right", obj, grasps, workers=1)
+    parallel = validate_many("shadow_right", obj, grasps, workers=2)
+    assert [_key(r) for r in serial] == [_key(r) for r in parallel]
+    assert [r.failure for r in serial] == [None, Failure.NO_CONTACT, None]
+
+
+def test_wrong_grasp_vector_length_is_one_clear_error(validators, references) -> None:
+    g = references["004_sugar_box"]
+    with pytest.raises(GraspInputError, match=r"grasp joints: expected 24 joint values"):
+        validators["004_sugar_box"].validate(Grasp.from_arrays(g.palm_pos, g.palm_quat_wxyz,
+                                                               g.joints[:-2]))
+    with pytest.raises(GraspInputError, match="unit quaternion"):
+        Grasp.from_arrays(g.palm_pos, [1.0, 1.0, 0.0, 0.0], g.joints)
+
+
+def test_validate_config_errors_name_the_key(tmp_path: Path) -> None:
+    from sim.paths import CONFIG_DIR
+
+    text = (CONFIG_DIR / "validate.toml").read_text()
+    bad = tmp_path / "validate.toml"
+    bad.write_text(text.replace("hold_time_s = 1.0", "hold_time_s = -1.0"))
+    with pytest.raises(ConfigError, match=r"validate\.toml: lift_drop\.hold_time_s"):
+        ValidateConfig.load(bad)
