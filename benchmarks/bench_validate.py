@@ -4,7 +4,7 @@ Workload: for each object, the hand's reference grasps (configs/grasps/<hand>.to
 perturbations of them (palm ±5 mm / ±5°, joints ±0.05 rad), so passes and the usual failures
 (penetration, slipping, lost contact) are all in the mix. Prints one Markdown table.
 
-    .venv/bin/python benchmarks/bench_validate.py [--hand shadow_right] [--n 40] [--objects 004_sugar_box 024_bowl]
+    .venv/bin/python benchmarks/bench_validate.py [--n 40] [--objects 004_sugar_box 024_bowl]
 """
 
 from __future__ import annotations

@@ -26,11 +26,10 @@ def assets(args: argparse.Namespace, console: Console) -> int:
     Hands come from configs/hands/*.toml resolved through mujoco_menagerie (MENAGERIE_ROOT);
     objects are the procedural primitives plus every YCB object under DEXAUG_YCB_ROOT.
     """
-    from sim.objects import list_objects
-
     from sim.errors import DexaugError
     from sim.hand import Hand
     from sim.hand_config import HANDS_DIR
+    from sim.objects import list_objects
     from sim.paths import MENAGERIE_ENV, YCB_ENV, ensure_menagerie_root, ycb_root
 
     console.print(f"{MENAGERIE_ENV} = {ensure_menagerie_root()}")
@@ -92,10 +91,9 @@ def run_reference_validation(hand_name: str, console: Console, *, object_name: s
                                  "lift-drop", "six-dir"), render_dir: Path | None = None,
                              json_path: Path | None = None) -> int:
     """Validate the hand's reference grasps and print a results table; returns the exit code."""
-    from sim.objects import load_object
-
     from sim.hand import Hand
     from sim.io import write_bytes_atomic
+    from sim.objects import load_object
     from sim.reference_grasps import load_reference_grasps
     from sim.validate import Validator
 

@@ -8,11 +8,11 @@ until they stop (sim.closing), and store what the hand ended up with. Run:
 from __future__ import annotations
 
 import numpy as np
-from sim.objects import load_object
 
 from sim.closing import close_on_object
 from sim.hand import Hand
 from sim.io import write_bytes_atomic
+from sim.objects import load_object
 from sim.reference_grasps import GRASPS_DIR
 from sim.scene import Scene
 from sim.transforms import mat_to_quat
