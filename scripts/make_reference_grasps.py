@@ -27,6 +27,9 @@ SPECS = [
     ("box_edge_wrap", "004_sugar_box", [-0.027, -0.076, 0.168],
      [[-1, 0, 0], [0, 1, 0], [0, 0, -1]],
      "palm on the box's narrow -y face near the top, fingers pointing down and around the edges"),
+    ("bowl_side_grasp", "024_bowl", [-0.095, 0.049, 0.047],
+     [[0, 0, 1], [0, -1, 0], [1, 0, 0]],
+     "palm against the bowl's outer wall on +y, fingers pointing +x along the wall"),
 ]
 
 

@@ -58,3 +58,26 @@ def contacts_between(model: mujoco.MjModel, data: mujoco.MjData, mask_a: np.ndar
             force[k] = buf[0]
     return Contacts(pos=con.pos[sel].copy(), normal=normal, dist=con.dist[sel].copy(),
                     body_a=model.geom_bodyid[geom_a], force_n=force)
+
+
+def merge_nearby(points: np.ndarray, normals: np.ndarray, labels: np.ndarray | None = None,
+                 cell_m: float = 0.01) -> tuple[np.ndarray, np.ndarray]:
+    """Merge contacts of the same label (e.g. hand body) that fall in the same ``cell_m`` grid
+    cell into one: mean point, mean unit normal.
+
+    MuJoCo reports several contacts per touching patch (a fingertip pad gives 2-4); for
+    wrench-space metrics they add almost nothing but make the 6D hull slow (thousands of facets)
+    and numerically fragile, so each patch is reduced to one point contact.
+    """
+    if len(points) == 0:
+        return points, normals
+    keys = np.floor(points / cell_m).astype(np.int64)
+    if labels is not None:
+        keys = np.column_stack([keys, labels])
+    _, inverse = np.unique(keys, axis=0, return_inverse=True)
+    inverse = inverse.ravel()
+    count = np.bincount(inverse).astype(float)
+    merged_p = np.stack([np.bincount(inverse, points[:, k]) for k in range(3)], 1) / count[:, None]
+    merged_n = np.stack([np.bincount(inverse, normals[:, k]) for k in range(3)], 1)
+    merged_n /= np.linalg.norm(merged_n, axis=1, keepdims=True)
+    return merged_p, merged_n

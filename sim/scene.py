@@ -79,6 +79,8 @@ class Scene:
         base = world.worldbody.add_body(name="hand_base")
         base.add_freejoint(name="hand_free")
         hand_spec = self.hand.spec()
+        for key in ("timestep", "integrator", "cone", "impratio", "noslip_iterations"):
+            setattr(hand_spec.option, key, getattr(world.option, key))  # the scene's options rule
         world.attach(hand_spec, prefix=HAND_PREFIX, frame=base.add_frame())
         for body in world.bodies:
             if body.name == "hand_base" or body.name.startswith(HAND_PREFIX):

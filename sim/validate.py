@@ -18,7 +18,7 @@ import mujoco
 import numpy as np
 
 from sim.config import load_toml
-from sim.contacts import Contacts, contacts_between
+from sim.contacts import Contacts, contacts_between, merge_nearby
 from sim.grasp import Grasp
 from sim.gws import gws_metrics
 from sim.hand import Hand
@@ -57,6 +57,7 @@ class CommonParams:
 @dataclass(frozen=True)
 class LiftDropParams:
     timestep_s: float
+    impratio: float
     lift_height_m: float
     lift_time_s: float
     hold_time_s: float
@@ -69,6 +70,7 @@ class LiftDropParams:
 @dataclass(frozen=True)
 class SixDirParams:
     timestep_s: float
+    impratio: float
     noslip_iterations: int
     force_per_kg: float
     push_time_s: float
@@ -102,21 +104,23 @@ class ValidateConfig:
                                   solref=tuple(c.floats("solref", 2))),
             gws_mu=c.float("gws_mu", min=0.0))
         ld = root.section("lift_drop")
-        ld.reject_unknown({"timestep_s", "lift_height_m", "lift_time_s", "hold_time_s",
+        ld.reject_unknown({"timestep_s", "impratio", "lift_height_m", "lift_time_s", "hold_time_s",
                            "drop_time_s", "max_displacement_m", "max_rotation_deg",
                            "drop_min_fall_m"})
         lift = LiftDropParams(
             timestep_s=ld.float("timestep_s", min=1e-4, max=0.02),
+            impratio=ld.float("impratio", min=1.0),
             lift_height_m=ld.float("lift_height_m", **pos), lift_time_s=ld.float("lift_time_s", min=1e-3),
             hold_time_s=ld.float("hold_time_s", **pos), drop_time_s=ld.float("drop_time_s", **pos),
             max_displacement_m=ld.float("max_displacement_m", **pos),
             max_rotation_rad=np.deg2rad(ld.float("max_rotation_deg", min=0.0, max=180.0)),
             drop_min_fall_m=ld.float("drop_min_fall_m", **pos))
         sd = root.section("six_dir")
-        sd.reject_unknown({"timestep_s", "noslip_iterations", "force_per_kg", "push_time_s",
+        sd.reject_unknown({"timestep_s", "impratio", "noslip_iterations", "force_per_kg", "push_time_s",
                            "max_displacement_m", "max_rotation_deg"})
         six = SixDirParams(
             timestep_s=sd.float("timestep_s", min=1e-4, max=0.02),
+            impratio=sd.float("impratio", min=1.0),
             noslip_iterations=sd.int("noslip_iterations", min=0),
             force_per_kg=sd.float("force_per_kg", **pos), push_time_s=sd.float("push_time_s", **pos),
             max_displacement_m=sd.float("max_displacement_m", **pos),
@@ -184,10 +188,12 @@ class Validator:
             raise ValueError(f"unknown protocol {protocol!r}; expected one of {PROTOCOLS}")
         if protocol not in self._scenes:
             if protocol == "six-dir":
-                physics = PhysicsOptions(timestep_s=self.config.six_dir.timestep_s,
-                                         noslip_iterations=self.config.six_dir.noslip_iterations)
+                six = self.config.six_dir
+                physics = PhysicsOptions(timestep_s=six.timestep_s, impratio=six.impratio,
+                                         noslip_iterations=six.noslip_iterations)
             else:
-                physics = PhysicsOptions(timestep_s=self.config.lift_drop.timestep_s)
+                lift = self.config.lift_drop
+                physics = PhysicsOptions(timestep_s=lift.timestep_s, impratio=lift.impratio)
             self._scenes[protocol] = Scene(self.hand, self.obj, contact=self.config.common.contact,
                                            physics=physics)
         return self._scenes[protocol]
@@ -286,6 +292,7 @@ class Validator:
         pts = inv_p + rotate(inv_q, con.pos[touching])
         nrm = rotate(inv_q, con.normal[touching])
         result.contact_pos_obj, result.contact_normal_obj = pts, nrm
+        pts, nrm = merge_nearby(pts, nrm, con.body_a[touching])
         metrics = gws_metrics(pts, nrm, mu=self.config.common.gws_mu, centre=self.obj.com_m,
                               torque_scale_m=self.obj.max_radius_m)
         result.epsilon, result.volume = metrics.epsilon, metrics.volume
