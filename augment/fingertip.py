@@ -261,6 +261,33 @@ def fingertip_cloud(vertices: ArrayLike, faces: ArrayLike, *, density_per_m2: fl
     return value
 
 
+def _main_face(pulp_p: np.ndarray, pulp_n: np.ndarray, query: np.ndarray | None,
+               p: FingertipParams, u_dir: np.ndarray) -> ContactFace:
+    """The main contact face at ``query``; a demo contact at the rim of the pulp (a wrap grasp
+    often touches with the side of the tip) has too few neighbours for a face, so the query is
+    then walked toward the pulp centroid until a face forms, with a warning."""
+    def grow(q: np.ndarray | None) -> ContactFace:
+        return contact_face(pulp_p, pulp_n, q, depth_m=p.depth_m, normal_dot=p.normal_dot,
+                            shape=p.shape, v_u=u_dir, centre=p.centre)
+
+    try:
+        return grow(query)
+    except ContactFaceError:
+        if query is None:
+            raise
+        centroid = pulp_p.mean(axis=0)
+        for t in (0.25, 0.5, 0.75, 1.0):
+            try:
+                face = grow((1.0 - t) * query + t * centroid)
+            except ContactFaceError:
+                continue
+            log.warning("demo contact %s is at the rim of the fingertip pulp; contact face "
+                        "grown %.0f%% of the way to the pulp centroid", query.round(4).tolist(),
+                        100 * t)
+            return face
+        raise
+
+
 def fingertip_faces(vertices: ArrayLike, faces: ArrayLike, v_f: ArrayLike, v_u: ArrayLike, *,
                     query: ArrayLike | None = None,
                     params: FingertipParams | None = None) -> FingertipFaces:
@@ -301,8 +328,7 @@ def fingertip_faces(vertices: ArrayLike, faces: ArrayLike, v_f: ArrayLike, v_u: 
         return hit
     pulp_p, pulp_n = visible_pulp_cloud(points, normals, f_dir, u_dir,
                                         radius_factor=p.hpr_radius_factor)
-    main = contact_face(pulp_p, pulp_n, q, depth_m=p.depth_m, normal_dot=p.normal_dot,
-                        shape=p.shape, v_u=u_dir, centre=p.centre)
+    main = _main_face(pulp_p, pulp_n, q, p, u_dir)
     extras: list[ContactFace] = []
     if p.extra_faces:
         extras = extra_faces(pulp_p, pulp_n, main, f_dir, u_dir, depth_m=p.depth_m,

@@ -24,7 +24,7 @@ from sim.gws import gws_metrics
 from sim.hand import Hand
 from sim.objects import ContactParams, ObjectAsset
 from sim.paths import CONFIG_DIR
-from sim.scene import OBJECT_HOME, PhysicsOptions, Scene
+from sim.scene import HAND_PREFIX, OBJECT_HOME, PhysicsOptions, Scene
 from sim.transforms import pose_inv, pose_mul, quat_angle, rotate
 
 PROTOCOLS = ("lift-drop", "six-dir")
@@ -326,6 +326,31 @@ class Validator:
         else:
             self._six_dir(scene, result)
         return result
+
+    def fingertip_contacts(self, grasp: Grasp) -> dict[str, np.ndarray | None]:
+        """Per finger, the centroid (metres, fingertip body frame) of the hand–object contacts
+        of its tip body at the placed grasp (within ``contact_search_m``), or None. This is what
+        AutoWS needs from a demonstration."""
+        q = self.hand.check_q(grasp.joints, "grasp joints")
+        scene = self.scene("lift-drop")
+        self._place(scene, grasp, q)
+        m, d = scene.model, scene.data
+        saved = m.geom_margin.copy()
+        m.geom_margin[scene.obj_geom_mask] = self.config.common.contact_search_m
+        mujoco.mj_collision(m, d)
+        near = self._hand_object_contacts(scene)
+        m.geom_margin[:] = saved
+        out: dict[str, np.ndarray | None] = {}
+        for finger in self.hand.config.fingers:
+            body = m.body(HAND_PREFIX + finger.tip_body).id
+            sel = near.body_a == body
+            if not sel.any():
+                out[finger.name] = None
+                continue
+            on_hand = near.pos[sel] - near.normal[sel] * near.dist[sel, None] / 2.0
+            local = (on_hand - d.xpos[body]) @ d.xmat[body].reshape(3, 3)
+            out[finger.name] = local.mean(axis=0)
+        return out
 
     def render(self, grasp: Grasp, width: int = 640, height: int = 480) -> np.ndarray:
         """RGB image of the grasp after closing (lift-drop scene), contacts marked."""
