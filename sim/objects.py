@@ -457,7 +457,11 @@ def _resolve_ycb(name: str) -> Path:
     if len(matches) > 1:
         raise AssetError(f"object {name!r} is ambiguous: {', '.join(f.name for f in matches)}")
     if root is None:
-        where = (f"no YCB root ({YCB_ENV} unset and ../shared/assets/ycb absent)")
+        try:
+            ycb_root(required=True)
+        except AssetError as exc:  # says which variable/path is missing and what to do
+            raise AssetError(f"object {name!r} is not a primitive ({', '.join(PRIMITIVES)}) "
+                             f"and no YCB objects are available: {exc}") from None
     else:
         where = (f"YCB objects under {root}: {folders[0].name} … {folders[-1].name} "
                  f"({len(folders)})" if folders else f"no YCB object folders under {root}")
