@@ -33,7 +33,7 @@ import numpy as np
 import trimesh
 
 from sim.errors import AssetError
-from sim.paths import YCB_ENV, ycb_root
+from sim.paths import ycb_root
 from sim.primitives import PRIMITIVES
 
 logger = logging.getLogger(__name__)
@@ -462,9 +462,8 @@ def _resolve_ycb(name: str) -> Path:
         except AssetError as exc:  # says which variable/path is missing and what to do
             raise AssetError(f"object {name!r} is not a primitive ({', '.join(PRIMITIVES)}) "
                              f"and no YCB objects are available: {exc}") from None
-    else:
-        where = (f"YCB objects under {root}: {folders[0].name} … {folders[-1].name} "
-                 f"({len(folders)})" if folders else f"no YCB object folders under {root}")
+    where = (f"YCB objects under {root}: {folders[0].name} … {folders[-1].name} "
+             f"({len(folders)})" if folders else f"no YCB object folders under {root}")
     raise AssetError(f"unknown object {name!r}: expected a primitive ({', '.join(PRIMITIVES)}), "
                      f"a YCB id or folder name ({where}), or a path to an object XML")
 
