@@ -229,3 +229,54 @@ def workspace(args: argparse.Namespace, console: Console) -> int:
         render_workspace_png(hand, cloud, args.render)
         console.print(f"wrote {args.render}")
     return 0
+
+
+def _retarget_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("file", type=Path, help="an MCAP session recorded by dexaug, or an IWER "
+                   "capture module (.js) recorded in a WebXR page")
+    p.add_argument("--hand", default="shadow_right", help="hand config name (configs/hands)")
+    p.add_argument("--out", type=Path, help="save the retargeted trajectory (.npz)")
+
+
+@command("retarget", _retarget_args)
+def retarget(args: argparse.Namespace, console: Console) -> int:
+    """Retarget a recorded hand-tracking stream offline and report fingertip errors.
+
+    Runs the same mink retargeter as the bridge over every frame (operator scale calibrated
+    from the recording) and prints per-finger fingertip error (median, p95, max) and the
+    per-frame solve time.
+    """
+    from sim.hand import Hand
+    from sim.io import atomic_path
+    from teleop.retarget import Retargeter, retarget_frames, summarise_errors
+
+    if args.file.suffix == ".js":
+        from teleop.webxr import iwer_hand_frames, load_iwer_capture
+
+        frames = iwer_hand_frames(load_iwer_capture(args.file))
+    else:
+        from teleop.session import open_session
+
+        frames = [frame for _, frame in open_session(args.file).hands()]
+    hand = Hand.load(args.hand)
+    retargeter = Retargeter(hand)  # which operator hand it follows: configs/teleop.toml
+    retargeter.calibrate_scale(frames)
+    with Progress(console=console, transient=True) as progress:
+        progress.add_task(f"retargeting {len(frames)} frames", total=None)
+        trace = retarget_frames(retargeter, frames)
+    summary = summarise_errors(trace)
+    table = Table(title=f"retargeting {args.file.name} → {hand.name} (scale "
+                  f"{retargeter.scale:.3f})")
+    for col in ("finger", "median (mm)", "p95 (mm)", "max (mm)"):
+        table.add_column(col, justify="right")
+    for finger, stats in summary["fingers"].items():
+        table.add_row(finger, *(f"{stats[k] * 1e3:.1f}" for k in ("median_m", "p95_m", "max_m")))
+    console.print(table)
+    console.print(f"{summary['frames']} frames, {summary['held']} held (no usable hand); solve "
+                  f"{summary['step_median_s'] * 1e3:.2f} ms median, "
+                  f"{summary['step_p99_s'] * 1e3:.2f} ms p99")
+    if args.out:
+        with atomic_path(args.out) as tmp, tmp.open("wb") as f:
+            np.savez(f, **trace.as_dict())
+        console.print(f"wrote {args.out}")
+    return 0

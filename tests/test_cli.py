@@ -18,7 +18,7 @@ def test_help_lists_every_subcommand(capsys) -> None:
     with pytest.raises(SystemExit):
         build_parser().parse_args(["--help"])
     out = capsys.readouterr().out
-    for name in ("assets", "validate", "workspace", "demo"):
+    for name in ("assets", "validate", "workspace", "retarget", "demo"):
         assert name in out
 
 
@@ -42,6 +42,23 @@ def test_validate_writes_json_matching_the_table(tmp_path: Path, capsys) -> None
     assert [(r["grasp"], r["protocol"], r["passed"]) for r in rows] == [
         ("can_side_wrap", "lift-drop", True)]
     assert "1/1 validations passed" in capsys.readouterr().out
+
+
+@needs_menagerie
+def test_retarget_reports_errors_of_the_quest_capture(tmp_path: Path, capsys) -> None:
+    from sim.paths import SHARED_ASSETS
+
+    capture = SHARED_ASSETS / "handdata" / "quest3_webxr" / "cap.min.js"
+    if not capture.is_file():
+        pytest.skip("no Quest capture in ../shared/assets")
+    out = tmp_path / "trace.npz"
+    assert main(["retarget", str(capture), "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "757 frames" in text and "forefinger" in text
+    import numpy as np
+
+    trace = np.load(out)
+    assert trace["q"].shape == (757, 24)
 
 
 def test_unknown_hand_is_one_line_error(capsys) -> None:
