@@ -247,7 +247,7 @@ def wrench_hull_metrics(wrenches: np.ndarray) -> GwsMetrics:
     # distance to facet k is -offset_k (positive for every facet iff the origin is inside)
     dist = -hull.equations[:, -1]
     d_min = float(dist.min())
-    epsilon = abs(d_min)
+    epsilon = d_min if d_min > INSIDE_REL_TOL * scale else NO_FORCE_CLOSURE
     return GwsMetrics(epsilon=epsilon, volume=float(hull.volume))
 
 
