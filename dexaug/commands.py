@@ -280,3 +280,34 @@ def retarget(args: argparse.Namespace, console: Console) -> int:
             np.savez(f, **trace.as_dict())
         console.print(f"wrote {args.out}")
     return 0
+
+
+def _synth_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--object", default="005_tomato_soup_can", help="object to grasp (YCB id or "
+                   "primitive)")
+    p.add_argument("--hand", default="shadow_right", help="robot hand config the episode targets")
+    p.add_argument("--grasp", help="reference grasp to imitate (default: the hand's reference "
+                   "grasp of the object, else a generic side grasp)")
+    p.add_argument("--seed", type=int, default=0, help="noise/dropout seed (deterministic)")
+    p.add_argument("--out", type=Path, required=True, help="MCAP session file to write")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing file")
+
+
+@command("synth", _synth_args)
+def synth(args: argparse.Namespace, console: Console) -> int:
+    """Generate a synthetic operator's hand-tracking session (approach → grasp → lift → release).
+
+    A human-proportioned OpenXR hand, with tracking noise, timestamp jitter and dropouts, whose
+    retargeted robot hand lands on a reference grasp of the object. Writes /hands and a
+    grasp_mark event to an MCAP session that replays like a real recording.
+    """
+    from teleop.synth import synthesize, write_session
+
+    episode = synthesize(args.object, hand=args.hand, seed=args.seed, grasp_name=args.grasp)
+    path = write_session(episode, args.out, overwrite=args.overwrite)
+    tracked = int(episode.tracked.sum())
+    console.print(f"wrote {path}: {len(episode.frames)} frames over "
+                  f"{episode.frames[-1].device_time_s - episode.frames[0].device_time_s:.1f} s "
+                  f"({tracked} with a tracked hand), grasp mark at {episode.grasp_time_s:.2f} s, "
+                  f"imitating {episode.reference_grasp or 'a generic side grasp'}")
+    return 0

@@ -18,7 +18,7 @@ def test_help_lists_every_subcommand(capsys) -> None:
     with pytest.raises(SystemExit):
         build_parser().parse_args(["--help"])
     out = capsys.readouterr().out
-    for name in ("assets", "validate", "workspace", "retarget", "demo"):
+    for name in ("assets", "validate", "workspace", "retarget", "synth", "demo"):
         assert name in out
 
 
@@ -59,6 +59,17 @@ def test_retarget_reports_errors_of_the_quest_capture(tmp_path: Path, capsys) ->
 
     trace = np.load(out)
     assert trace["q"].shape == (757, 24)
+
+
+@needs_menagerie
+@needs_ycb
+def test_synth_session_retargets(tmp_path: Path, capsys) -> None:
+    session = tmp_path / "synth.mcap"
+    assert main(["synth", "--object", "005_tomato_soup_can", "--out", str(session)]) == 0
+    assert main(["retarget", str(session)]) == 0
+    out = capsys.readouterr().out
+    assert "504 frames over 7.0 s" in out and "imitating can_side_wrap" in out
+    assert "504 frames," in out  # the retargeter read every recorded frame back
 
 
 def test_unknown_hand_is_one_line_error(capsys) -> None:
