@@ -309,5 +309,5 @@ def synth(args: argparse.Namespace, console: Console) -> int:
     console.print(f"wrote {path}: {len(episode.frames)} frames over "
                   f"{episode.frames[-1].device_time_s - episode.frames[0].device_time_s:.1f} s "
                   f"({tracked} with a tracked hand), grasp mark at {episode.grasp_time_s:.2f} s, "
-                  f"imitating {episode.reference_grasp or 'a generic side grasp'}")
+                  f"imitating {episode.reference_grasp or 'a generic side grasp'}", soft_wrap=True)
     return 0
