@@ -311,3 +311,65 @@ def synth(args: argparse.Namespace, console: Console) -> int:
                   f"({tracked} with a tracked hand), grasp mark at {episode.grasp_time_s:.2f} s, "
                   f"imitating {episode.reference_grasp or 'a generic side grasp'}", soft_wrap=True)
     return 0
+
+
+def _bridge_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--hand", default="shadow_right", help="hand config name (configs/hands)")
+    p.add_argument("--object", help="object on the table (default: configs/teleop.toml [bridge])")
+    p.add_argument("--rig", default="local", help="zenoh key prefix dexaug/<rig>/…")
+    p.add_argument("--listen", type=int, default=7447, help="TCP port to listen on (127.0.0.1)")
+    p.add_argument("--connect", type=int, nargs="*", default=[], help="peer ports to connect to")
+    p.add_argument("--duration", type=float, help="stop after this many seconds")
+    p.add_argument("--record", type=Path, help="start recording to this MCAP file at once")
+    p.add_argument("--no-view", action="store_true", help="do not render the /view stream")
+
+
+@command("bridge", _bridge_args)
+def bridge(args: argparse.Namespace, console: Console) -> int:
+    """Run the teleoperation bridge: zenoh /hands in → retarget → MuJoCo → /state, /view out.
+
+    Subscribes dexaug/<rig>/hands (live ingest or `dexaug replay`), drives a floating hand and an
+    object on a table, publishes dexaug/<rig>/state and a JPEG head-camera stream on
+    dexaug/<rig>/view, and answers dexaug/<rig>/control/** (start_recording, stop_recording,
+    choose_object, reset_object, mark_grasp, status). Ctrl-C stops it.
+    """
+    from teleop.bridge import bridge_main
+
+    console.print(f"bridge on rig {args.rig!r}, listening on tcp/127.0.0.1:{args.listen}")
+    return bridge_main(args.hand, args.object, args.rig, listen_port=args.listen,
+                       connect_ports=tuple(args.connect), duration_s=args.duration,
+                       record=args.record, view=False if args.no_view else None)
+
+
+def _replay_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("file", type=Path, help="MCAP session to replay")
+    p.add_argument("--rate", default="1.0", help="playback speed factor, or 'max'")
+    p.add_argument("--rig", default="local", help="zenoh key prefix dexaug/<rig>/…")
+    p.add_argument("--connect", type=int, nargs="+", default=[7447],
+                   help="bridge port(s) to connect to on 127.0.0.1")
+
+
+@command("replay", _replay_args)
+def replay(args: argparse.Namespace, console: Console) -> int:
+    """Publish a recorded session's hand tracking back onto zenoh (dexaug/<rig>/hands).
+
+    With original timing (--rate 1.0), scaled, or as fast as possible (--rate max); the bridge
+    cannot tell a replay from a live headset.
+    """
+    from sim.errors import ConfigError
+    from teleop.keys import free_tcp_port, open_session
+    from teleop.replay import replay as replay_session
+
+    rate: float | str = args.rate
+    if args.rate != "max":
+        try:
+            rate = float(args.rate)
+        except ValueError:
+            raise ConfigError(f"--rate: expected a number or 'max', got {args.rate!r}") from None
+    session = open_session(free_tcp_port(), tuple(args.connect))
+    try:
+        sent = replay_session(args.file, session, args.rig, rate=rate)
+    finally:
+        session.close()
+    console.print(f"replayed {sent} hand-tracking messages from {args.file}")
+    return 0
