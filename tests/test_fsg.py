@@ -1,0 +1,326 @@
+"""FSG (augment.fsg), object clouds (augment.object_cloud) and the HDF5 dataset (augment.dataset).
+
+The central checks: every generated grasp satisfies its own claims (contacts inside the claimed
+fingertip faces at the stored joint angles by forward kinematics, palm box clear, ε recomputed
+from the stored contacts), the grasps pass the MuJoCo lift-and-drop test at a non-trivial rate,
+and bad inputs end cleanly (errors naming the problem, time budgets honoured). Q1 hand checks
+(antipodal → −1, closed-form cube) live in tests/test_gws.py.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from augment import dataset
+from augment.fsg import FsgError, FsgParams, _align, _axis_rot, generate, load_fsg_params
+from augment.object_cloud import ObjectCloudError, normal_variation, object_cloud
+from augment.sampling import poisson_disk_sample
+from sim.gws import gws_metrics
+from sim.transforms import quat_to_mat
+from tests.conftest import needs_menagerie, needs_ycb
+
+CAN = "005_tomato_soup_can"
+
+
+# ------------------------------------------------------------------------------ pure helpers
+
+
+def test_align_and_axis_rotation() -> None:
+    rng = np.random.default_rng(0)
+    a = rng.normal(size=(50, 3))
+    a /= np.linalg.norm(a, axis=1, keepdims=True)
+    b = rng.normal(size=(50, 3))
+    b /= np.linalg.norm(b, axis=1, keepdims=True)
+    b[0] = -a[0]   # antiparallel case
+    b[1] = a[1]
+    r = _align(a, b)
+    np.testing.assert_allclose(np.einsum("bij,bj->bi", r, a), b, atol=1e-9)
+    np.testing.assert_allclose(r @ r.transpose(0, 2, 1), np.broadcast_to(np.eye(3), r.shape),
+                               atol=1e-9)
+    np.testing.assert_allclose(np.linalg.det(r), 1.0, atol=1e-9)
+    rz = _axis_rot(np.array([[0.0, 0, 1]]), np.array([np.pi / 2]))[0]
+    np.testing.assert_allclose(rz @ [1.0, 0, 0], [0, 1, 0], atol=1e-12)
+
+
+def test_normal_variation_marks_cube_edges() -> None:
+    """Curvature filter: on a cube the face interiors stay, points next to edges go."""
+    import trimesh
+
+    box = trimesh.creation.box([0.05, 0.05, 0.05])
+    pts, nrm = poisson_disk_sample(box.vertices, box.faces, n_points=1024, seed=0)
+    c = normal_variation(pts, nrm)
+    edge_dist = (0.025 - np.abs(pts)).copy()
+    # distance to the nearest edge = second-smallest distance to a face plane
+    to_edge = np.sort(edge_dist, axis=1)[:, 1]
+    assert np.all(c[to_edge > 0.012] < 1e-6)      # interiors (> ~3 spacings): flat
+    assert np.mean(c[to_edge < 0.001] > 0.7) > 0.8  # at the edges: excluded
+
+
+def test_load_fsg_params_defaults_and_errors(tmp_path: Path) -> None:
+    p = load_fsg_params()
+    assert (p.outer, p.inner, p.match_distance_m, p.normal_dot) == (200, 15, 0.008, -0.98)
+    bad = tmp_path / "a.toml"
+    bad.write_text("[fsg]\nouter = 0\n")
+    with pytest.raises(Exception, match="outer"):
+        load_fsg_params(bad)
+    bad.write_text("[fsg]\nbogus = 1\n")
+    with pytest.raises(Exception, match="bogus"):
+        load_fsg_params(bad)
+
+
+# ------------------------------------------------------------------------------ FSG on the can
+
+
+@pytest.fixture(scope="module")
+def can_setup(shadow):  # type: ignore[no-untyped-def]
+    from augment.workspace import build_workspace
+    from sim.objects import load_object
+
+    obj = load_object(CAN)
+    ws = build_workspace(shadow)
+    cloud = object_cloud(obj)
+    return obj, ws, cloud
+
+
+@pytest.fixture(scope="module")
+def can_result(shadow, can_setup):  # type: ignore[no-untyped-def]
+    _, ws, cloud = can_setup
+    return generate(shadow, cloud, ws, n=10, seed=0, time_budget_s=20, link_penetration=True)
+
+
+@needs_menagerie
+@needs_ycb
+def test_outputs_satisfy_their_claims(shadow, can_setup, can_result) -> None:  # type: ignore[no-untyped-def]
+    _, ws, cloud = can_setup
+    params = FsgParams()
+    res = can_result
+    assert len(res.grasps) == 10 and res.shortfall == 0 and res.stopped == "done"
+    assert res.elapsed_s < 15
+    for g in res.grasps:
+        rot = quat_to_mat(g.grasp.palm_quat_wxyz)
+
+        def to_palm(x: np.ndarray, rot: np.ndarray = rot, g=g) -> np.ndarray:  # type: ignore[no-untyped-def]
+            return (np.asarray(x) - g.grasp.palm_pos) @ rot
+
+        # palm box holds at most max_palm_points object points
+        box = np.all(np.abs(to_palm(cloud.points) - shadow.config.palm.box_center)
+                     <= shadow.config.palm.box_half_extents, axis=1)
+        assert box.sum() <= params.max_palm_points
+        # unused finger joints are 0
+        used_q = np.concatenate([shadow.finger_qadr[f] for f in g.fingers])
+        others = np.setdiff1d(np.arange(shadow.nq), used_q)
+        assert np.all(g.grasp.joints[others] == 0)
+        # contacts lie in the claimed faces at the stored joint angles (forward kinematics)
+        tpos, tquat = shadow.tip_frames_in_palm(g.grasp.joints)
+        cp = to_palm(g.contact_points)
+        cn = g.contact_normals @ rot
+        assert len(cp) >= params.min_contacts
+        for fi, f in enumerate(g.fingers):
+            fc = ws.finger(f)
+            h = shadow.finger_names.index(f)
+            r_tip = quat_to_mat(tquat[0, h])
+            face = g.face_index[fi]
+            centre = tpos[0, h] + r_tip @ fc.tip_centres[face]
+            normal = r_tip @ fc.tip_normals[face]
+            np.testing.assert_allclose(centre, fc.positions[g.ws_index[fi]], atol=1e-9)
+            mine = g.contact_finger == fi
+            assert mine.any(), f"finger {f} claims no contact"
+            d = cp[mine] - centre
+            hgt = d @ normal
+            inplane = d - hgt[:, None] * normal
+            assert np.all(np.abs(hgt) <= params.contact_plane_m + 1e-9)
+            assert np.all(np.linalg.norm(inplane, axis=1) <= fc.tip_radius[face] + 1e-9)
+            assert np.all(cn[mine] @ normal < 0)   # the object faces the fingertip
+        # Q1 recomputed from the stored contacts
+        m = gws_metrics(g.contact_points, -g.contact_normals, 0.5, 8, cloud.com_m,
+                        torque_scale_m=cloud.max_radius_m)
+        assert m.epsilon > 0
+        assert m.epsilon == pytest.approx(g.epsilon, rel=1e-9)
+        assert m.volume == pytest.approx(g.volume, rel=1e-9)
+    eps = [g.epsilon for g in res.grasps]
+    assert eps == sorted(eps, reverse=True)
+
+
+@needs_menagerie
+@needs_ycb
+def test_same_seed_same_grasps(shadow, can_setup, can_result) -> None:  # type: ignore[no-untyped-def]
+    _, ws, cloud = can_setup
+    again = generate(shadow, cloud, ws, n=10, seed=0, time_budget_s=20, link_penetration=True)
+    assert len(again.grasps) == len(can_result.grasps)
+    for a, b in zip(again.grasps, can_result.grasps, strict=True):
+        np.testing.assert_array_equal(a.grasp.joints, b.grasp.joints)
+        np.testing.assert_array_equal(a.grasp.palm_pos, b.grasp.palm_pos)
+
+
+@needs_menagerie
+@needs_ycb
+def test_lift_drop_pass_rate(can_result) -> None:  # type: ignore[no-untyped-def]
+    from sim.batch import validate_many
+
+    grasps = [g.grasp for g in can_result.grasps]
+    results = validate_many("shadow_right", CAN, grasps, "lift-drop",
+                            workers=min(len(grasps), os.cpu_count() or 1))
+    passed = sum(r.passed for r in results)
+    print(f"\nFSG on {CAN}: lift-drop pass rate {passed}/{len(results)}; failures "
+          f"{[str(r.failure) for r in results if not r.passed]}")
+    assert passed >= 1
+
+
+@needs_menagerie
+@needs_ycb
+def test_demo_seeded_run_ends_cleanly(shadow, can_setup) -> None:  # type: ignore[no-untyped-def]
+    """With the can_side_wrap demo (a power wrap: the fingertips face the palm), FSG's
+    precision model finds few or no grasps; whatever it finds must satisfy the claims, and the
+    run must end within its budget with the shortfall reported."""
+    from augment.workspace import DemoSeed, build_workspace
+    from sim.reference_grasps import load_reference_grasps
+    from sim.validate import Validator
+
+    obj, _, cloud = can_setup
+    ref = next(r for r in load_reference_grasps(shadow) if r.name == "can_side_wrap")
+    contacts = Validator(shadow, obj).fingertip_contacts(ref.grasp)
+    ws = build_workspace(shadow, demo=DemoSeed(ref.grasp.joints, contacts, ref.name))
+    t0 = time.monotonic()
+    res = generate(shadow, cloud, ws, n=3, seed=0, time_budget_s=2.0)
+    assert time.monotonic() - t0 < 5.0
+    assert len(res.grasps) + res.shortfall == 3
+    assert res.stopped in ("done", "time budget")
+    for g in res.grasps:
+        assert g.epsilon > 0
+
+
+@needs_menagerie
+@needs_ycb
+def test_table_mode_keeps_the_palm_above_the_table(shadow, can_setup) -> None:  # type: ignore[no-untyped-def]
+    from augment.fsg import _box_vertices
+
+    _, ws, cloud = can_setup
+    params = load_fsg_params()
+    res = generate(shadow, cloud, ws, n=3, seed=2, table=True, time_budget_s=10)
+    assert res.grasps
+    verts = _box_vertices(np.asarray(shadow.config.palm.box_center),
+                          np.asarray(shadow.config.palm.box_half_extents))
+    for g in res.grasps:
+        v_obj = g.grasp.palm_pos + verts @ quat_to_mat(g.grasp.palm_quat_wxyz).T
+        assert v_obj[:, 2].min() >= cloud.z_min_m + params.table_clearance_m - 1e-9
+
+
+@needs_menagerie
+@needs_ycb
+def test_unreachable_n_reports_a_shortfall(shadow, can_setup) -> None:  # type: ignore[no-untyped-def]
+    _, ws, cloud = can_setup
+    t0 = time.monotonic()
+    res = generate(shadow, cloud, ws, n=100_000, seed=1, time_budget_s=1.0)
+    assert time.monotonic() - t0 < 4.0
+    assert res.stopped == "time budget"
+    assert res.shortfall == 100_000 - len(res.grasps) > 0
+
+
+@needs_menagerie
+@needs_ycb
+def test_no_graspable_part(can_setup) -> None:  # type: ignore[no-untyped-def]
+    obj, _, _ = can_setup
+    with pytest.raises(ObjectCloudError, match=r"005_tomato_soup_can.*curvature_threshold -1"):
+        object_cloud(obj, curvature_threshold=-1.0, affordance=False)
+
+
+@needs_menagerie
+@needs_ycb
+def test_workspace_of_another_hand(shadow, can_setup) -> None:  # type: ignore[no-untyped-def]
+    _, ws, cloud = can_setup
+    with pytest.raises(FsgError, match="allegro_right"):
+        generate(shadow, cloud, dataclasses.replace(ws, hand="allegro_right"), n=1)
+    from augment.workspace import build_workspace
+    from sim.hand import Hand
+
+    try:
+        allegro = Hand.load("allegro_right")
+    except Exception as exc:  # pragma: no cover - asset missing
+        pytest.skip(f"no Allegro model: {exc}")
+    with pytest.raises(FsgError, match="shadow_right"):
+        generate(allegro, cloud, ws, n=1)
+    a_ws = build_workspace(allegro)
+    with pytest.raises(FsgError, match="allegro_right"):
+        generate(shadow, cloud, a_ws, n=1)
+
+
+# ------------------------------------------------------------------------------ dataset
+
+
+def _fake_grasps(n: int, nq: int, fingers: tuple[str, ...], seed: int = 0) -> list:
+    from augment.fsg import FsgGrasp
+    from sim.grasp import Grasp
+
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in range(n):
+        m = 3 + i
+        q = rng.normal(size=4)
+        out.append(FsgGrasp(
+            grasp=Grasp(rng.normal(size=3), q / np.linalg.norm(q), rng.normal(size=nq)),
+            fingers=fingers[:2 + i % 2], contact_points=rng.normal(size=(m, 3)),
+            contact_normals=rng.normal(size=(m, 3)), contact_finger=np.arange(m) % 2,
+            ws_index=(0, 1), face_index=(0, 0), epsilon=float(rng.random()),
+            volume=float(rng.random())))
+    return out
+
+
+@dataclasses.dataclass
+class _Val:
+    passed: bool
+    failure: str | None
+    displacement_m: float = 0.001
+    rotation_rad: float = 0.01
+    penetration_m: float = 0.0
+    epsilon: float = 0.05
+
+
+def test_dataset_round_trip_append_and_atomicity(tmp_path: Path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    joints = tuple(f"j{i}" for i in range(6))
+    fingers = ("thumb", "index", "middle")
+    grasps = _fake_grasps(4, 6, fingers)
+    vals = [_Val(True, None), _Val(False, "slipped"), _Val(True, None), _Val(False, "penetration")]
+    attrs = {"hand": "h", "config_hash": "abc", "seed": 3, "versions": {"numpy": np.__version__}}
+    table = dataset.from_fsg(grasps, joints, fingers, vals, demo_id="d1", attrs=attrs)
+    path = tmp_path / "grasps.h5"
+    dataset.save(path, {"obj": table})
+    loaded = dataset.load(path)["obj"]
+    assert len(loaded) == 2 and loaded.rejected is not None and len(loaded.rejected) == 2
+    assert list(loaded.rejected["failure"]) == ["slipped", "penetration"]
+    np.testing.assert_array_equal(loaded["palm_pose"][1][:3], grasps[2].grasp.palm_pos)
+    np.testing.assert_array_equal(loaded["hand_pose"][0], grasps[0].grasp.joints)
+    assert loaded.joint_names == joints and loaded.finger_names == fingers
+    pts, nrm, _ = loaded.contacts(1)
+    np.testing.assert_array_equal(pts, grasps[2].contact_points)
+    np.testing.assert_array_equal(nrm, grasps[2].contact_normals)
+    assert list(loaded["fingers_used"][1]) == [True, True, False]
+    assert loaded.attrs["hand"] == "h" and loaded.attrs["seed"] == 3
+    assert list(loaded["demo_id"]) == ["d1", "d1"]
+    import h5py
+    with h5py.File(path) as f:
+        assert f["obj/palm_pose"].attrs["order"] == "x y z qw qx qy qz"
+    # append: same object grows, a new object appears
+    more = dataset.from_fsg(_fake_grasps(3, 6, fingers, seed=1), joints, fingers)
+    dataset.append(path, {"obj": more, "other": more})
+    both = dataset.load(path)
+    assert len(both["obj"]) == 5 and len(both["other"]) == 3
+    pts, _, _ = both["obj"].contacts(4)
+    np.testing.assert_array_equal(pts, _fake_grasps(3, 6, fingers, seed=1)[2].contact_points)
+    assert [p.name for p in tmp_path.iterdir()] == ["grasps.h5"]
+    # a failing write leaves the old file intact and no temp file behind
+    before = path.read_bytes()
+
+    def boom(*_a, **_k):  # type: ignore[no-untyped-def]
+        raise RuntimeError("disk full")
+
+    monkeypatch.setattr(dataset, "_write_group", boom)
+    with pytest.raises(RuntimeError, match="disk full"):
+        dataset.append(path, {"obj": more})
+    assert path.read_bytes() == before
+    assert [p.name for p in tmp_path.iterdir()] == ["grasps.h5"]
