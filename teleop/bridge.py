@@ -644,12 +644,7 @@ class Bridge:
                 with self._view_lock:
                     if self._view_data is None or self._view_head is None:
                         continue
-                    lookat_head = self._view_head
-                    from teleop.view import head_camera
-                    lookat, dist, az, el = head_camera(*lookat_head)
-                    view.cam.lookat[:] = lookat
-                    view.cam.distance, view.cam.azimuth, view.cam.elevation = dist, az, el
-                    view.renderer.update_scene(self._view_data, view.cam, scene_option=view.opt)
+                    view.update(self._view_data, *self._view_head)
                 t_render = time.perf_counter()
                 jpeg = view.encode(view.renderer.render())
                 t_render = time.perf_counter() - t_render

@@ -57,12 +57,17 @@ class HeadView:
         model.vis.scale.contactheight = 0.02
         self.encode_params = [int(cv2.IMWRITE_JPEG_QUALITY), int(jpeg_quality)]
 
-    def render_rgb(self, data: mujoco.MjData, head_pos_m: Array, head_quat_wxyz: Array) -> Array:
-        """RGB (H, W, 3) uint8 from the head."""
+    def update(self, data: mujoco.MjData, head_pos_m: Array, head_quat_wxyz: Array) -> None:
+        """Copy the state into the renderer's scene from the head's viewpoint (the only step
+        that reads ``data``: callers sharing ``data`` hold their lock just for this)."""
         lookat, dist, az, el = head_camera(head_pos_m, head_quat_wxyz)
         self.cam.lookat[:] = lookat
         self.cam.distance, self.cam.azimuth, self.cam.elevation = dist, az, el
         self.renderer.update_scene(data, self.cam, scene_option=self.opt)
+
+    def render_rgb(self, data: mujoco.MjData, head_pos_m: Array, head_quat_wxyz: Array) -> Array:
+        """RGB (H, W, 3) uint8 from the head."""
+        self.update(data, head_pos_m, head_quat_wxyz)
         return self.renderer.render()
 
     def encode(self, rgb: Array) -> bytes:
