@@ -18,8 +18,8 @@ def quat_normalize(q: Array) -> Array:
 
 def quat_mul(a: Array, b: Array) -> Array:
     """Hamilton product a ⊗ b (apply b first, then a, as rotations)."""
-    aw, ax, ay, az = np.moveaxis(a, -1, 0)
-    bw, bx, by, bz = np.moveaxis(b, -1, 0)
+    aw, ax, ay, az = np.moveaxis(np.asarray(a, dtype=float), -1, 0)
+    bw, bx, by, bz = np.moveaxis(np.asarray(b, dtype=float), -1, 0)
     return np.stack([
         aw * bw - ax * bx - ay * by - az * bz,
         aw * bx + ax * bw + ay * bz - az * by,
@@ -29,7 +29,8 @@ def quat_mul(a: Array, b: Array) -> Array:
 
 
 def quat_conj(q: Array) -> Array:
-    return q * np.array([1.0, -1.0, -1.0, -1.0])
+    """Conjugate: the inverse rotation of a unit quaternion."""
+    return np.asarray(q, dtype=float) * np.array([1.0, -1.0, -1.0, -1.0])
 
 
 def quat_to_mat(q: Array) -> Array:
@@ -81,13 +82,18 @@ def axis_angle_to_quat(axis: Array, angle: Array) -> Array:
 
 
 def rotate(q: Array, v: Array) -> Array:
-    """Rotate vectors v (...,3) by quaternions q (...,4) wxyz."""
-    return np.einsum("...ij,...j->...i", quat_to_mat(q), v)
+    """Rotate vectors v (...,3) by unit quaternions q (...,4) wxyz, without forming matrices:
+    v' = v + w·t + u × t with t = 2 u × v."""
+    q = np.asarray(q, dtype=float)
+    v = np.asarray(v, dtype=float)
+    u = q[..., 1:]
+    t = 2.0 * np.cross(u, v)
+    return v + q[..., :1] * t + np.cross(u, t)
 
 
 def pose_mul(p_a: Array, q_a: Array, p_b: Array, q_b: Array) -> tuple[Array, Array]:
     """Compose poses: T_a ∘ T_b (b expressed in a's frame)."""
-    return p_a + rotate(q_a, p_b), quat_mul(q_a, q_b)
+    return np.asarray(p_a, dtype=float) + rotate(q_a, p_b), quat_mul(q_a, q_b)
 
 
 def pose_inv(p: Array, q: Array) -> tuple[Array, Array]:

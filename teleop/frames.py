@@ -66,17 +66,7 @@ def quat_wxyz_to_xyzw(q_wxyz: Array) -> Array:
     return q[..., [1, 2, 3, 0]]
 
 
-# --- quaternion and pose algebra (wxyz) ---------------------------------------------------------
-
-
-def quat_mul_wxyz(a_wxyz: Array, b_wxyz: Array) -> Array:
-    """Hamilton product a ⊗ b (as rotations: apply b first, then a)."""
-    return transforms.quat_mul(np.asarray(a_wxyz, dtype=float), np.asarray(b_wxyz, dtype=float))
-
-
-def quat_conj_wxyz(q_wxyz: Array) -> Array:
-    """Conjugate; the inverse rotation for unit quaternions."""
-    return np.asarray(q_wxyz, dtype=float) * np.array([1.0, -1.0, -1.0, -1.0])
+# --- quaternion normalisation for tracking input (products and poses: sim.transforms) ------------
 
 
 def quat_normalize_wxyz(q_wxyz: Array) -> Array:
@@ -86,30 +76,6 @@ def quat_normalize_wxyz(q_wxyz: Array) -> Array:
     n = np.linalg.norm(q, axis=-1, keepdims=True)
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(n > 1e-12, q / np.where(n > 0, n, 1.0), np.nan)
-
-
-def quat_rotate_wxyz(q_wxyz: Array, v: Array) -> Array:
-    """Rotate vectors v (...,3) by unit quaternions (...,4) wxyz, without forming matrices:
-    v' = v + 2w (u × v) + 2 u × (u × v)."""
-    q = np.asarray(q_wxyz, dtype=float)
-    v = np.asarray(v, dtype=float)
-    w = q[..., :1]
-    u = q[..., 1:]
-    t = 2.0 * np.cross(u, v)
-    return v + w * t + np.cross(u, t)
-
-
-def pose_compose_wxyz(p_a: Array, q_a_wxyz: Array, p_b: Array,
-                      q_b_wxyz: Array) -> tuple[Array, Array]:
-    """T_a ∘ T_b: pose b (expressed in frame a) taken into a's parent frame. Positions metres."""
-    return (np.asarray(p_a, dtype=float) + quat_rotate_wxyz(q_a_wxyz, p_b),
-            quat_mul_wxyz(q_a_wxyz, q_b_wxyz))
-
-
-def pose_inverse_wxyz(p: Array, q_wxyz: Array) -> tuple[Array, Array]:
-    """T⁻¹ of unit-quaternion poses, so that compose(T, T⁻¹) is the identity."""
-    qi = quat_conj_wxyz(q_wxyz)
-    return -quat_rotate_wxyz(qi, p), qi
 
 
 # --- XR ↔ MuJoCo --------------------------------------------------------------------------------
@@ -130,13 +96,13 @@ def xr_to_mujoco_quat_wxyz(q_xyzw: Array) -> Array:
     """Orientations (...,4) given xyzw in the XR convention → wxyz in the MuJoCo convention,
     by conjugation (R' = C R Cᵀ; see the module docstring for what happens to local axes)."""
     q = quat_xyzw_to_wxyz(np.asarray(q_xyzw, dtype=float))
-    return quat_mul_wxyz(quat_mul_wxyz(XR_TO_MUJOCO_QUAT_WXYZ, q),
-                         quat_conj_wxyz(XR_TO_MUJOCO_QUAT_WXYZ))
+    return transforms.quat_mul(transforms.quat_mul(XR_TO_MUJOCO_QUAT_WXYZ, q),
+                         transforms.quat_conj(XR_TO_MUJOCO_QUAT_WXYZ))
 
 
 def mujoco_to_xr_quat_xyzw(q_wxyz: Array) -> Array:
     """Inverse of :func:`xr_to_mujoco_quat_wxyz`: MuJoCo wxyz → XR xyzw."""
-    q = quat_mul_wxyz(quat_mul_wxyz(quat_conj_wxyz(XR_TO_MUJOCO_QUAT_WXYZ), q_wxyz),
+    q = transforms.quat_mul(transforms.quat_mul(transforms.quat_conj(XR_TO_MUJOCO_QUAT_WXYZ), q_wxyz),
                       XR_TO_MUJOCO_QUAT_WXYZ)
     return quat_wxyz_to_xyzw(q)
 

@@ -54,7 +54,7 @@ from typing import Any
 
 import numpy as np
 
-from teleop import frames
+from sim import transforms
 from teleop import messages as hand_messages
 
 Array = np.ndarray
@@ -483,15 +483,15 @@ class ContactRecord:
         world poses (metres, quaternions wxyz)."""
         p = np.asarray(pos_world_m, dtype=float)
         n = np.asarray(normal_world, dtype=float)
-        inv_obj_p, inv_obj_q = frames.pose_inverse_wxyz(np.asarray(object_pos_m, float),
+        inv_obj_p, inv_obj_q = transforms.pose_inv(np.asarray(object_pos_m, float),
                                                         np.asarray(object_quat_wxyz, float))
-        inv_body_p, inv_body_q = frames.pose_inverse_wxyz(np.asarray(body_pos_m, float),
+        inv_body_p, inv_body_q = transforms.pose_inv(np.asarray(body_pos_m, float),
                                                           np.asarray(body_quat_wxyz, float))
         return cls(finger=finger, hand_body=hand_body, pos_world_m=p, normal_world=n,
-                   pos_object_m=inv_obj_p + frames.quat_rotate_wxyz(inv_obj_q, p),
-                   normal_object=frames.quat_rotate_wxyz(inv_obj_q, n),
-                   pos_hand_body_m=inv_body_p + frames.quat_rotate_wxyz(inv_body_q, p),
-                   normal_hand_body=frames.quat_rotate_wxyz(inv_body_q, n),
+                   pos_object_m=inv_obj_p + transforms.rotate(inv_obj_q, p),
+                   normal_object=transforms.rotate(inv_obj_q, n),
+                   pos_hand_body_m=inv_body_p + transforms.rotate(inv_body_q, p),
+                   normal_hand_body=transforms.rotate(inv_body_q, n),
                    dist_m=float(dist_m), force_n=float(force_n))
 
     def to_json(self) -> dict[str, Any]:

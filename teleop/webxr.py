@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from sim import transforms
 from sim.errors import DexaugError
 from teleop import frames
 from teleop.messages import NUM_JOINTS, PALM, WRIST, HandFrame, HandState, MessageError
@@ -454,7 +455,7 @@ def iwer_hand_frames(capture: IwerCapture, *, keep_handless: bool = False) -> li
         jl = np.stack(joints)  # (N,25,8)
         q_ray = frames.quat_normalize_wxyz(frames.quat_xyzw_to_wxyz(ray[..., 3:7]))
         q_j = frames.quat_xyzw_to_wxyz(jl[..., 3:7])
-        p_xr, q_xr = frames.pose_compose_wxyz(ray[..., :3], q_ray, jl[..., :3], q_j)
+        p_xr, q_xr = transforms.pose_mul(ray[..., :3], q_ray, jl[..., :3], q_j)
         pos, quat, rad, ok = _webxr_to_openxr_arrays(
             p_xr, frames.quat_wxyz_to_xyzw(q_xr), jl[..., 7])
         for n, (k, side) in enumerate(slots):

@@ -115,10 +115,10 @@ def test_quaternion_conversion_agrees_with_rotating_vectors() -> None:
     v = rng.normal(size=(50, 3))
     q_mj = frames.xr_to_mujoco_quat_wxyz(q_xr_xyzw)
     # rotate in XR then map == map then rotate with the converted quaternion
-    lhs = frames.xr_to_mujoco_positions(frames.quat_rotate_wxyz(q_xr_wxyz, v))
-    rhs = frames.quat_rotate_wxyz(q_mj, frames.xr_to_mujoco_positions(v))
+    lhs = frames.xr_to_mujoco_positions(transforms.rotate(q_xr_wxyz, v))
+    rhs = transforms.rotate(q_mj, frames.xr_to_mujoco_positions(v))
     np.testing.assert_allclose(lhs, rhs, atol=1e-12)
-    np.testing.assert_allclose(frames.quat_rotate_wxyz(q_xr_wxyz, v),
+    np.testing.assert_allclose(transforms.rotate(q_xr_wxyz, v),
                                transforms.rotate(q_xr_wxyz, v), atol=1e-12)
     np.testing.assert_allclose(frames.mujoco_to_xr_quat_xyzw(q_mj), q_xr_xyzw, atol=1e-12)
     # the XR identity orientation stays the identity
@@ -130,15 +130,15 @@ def test_pose_helpers_compose_invert_and_commute_with_the_conversion() -> None:
     rng = np.random.default_rng(2)
     pa, qa = rng.normal(size=(4, 3)), random_quats_wxyz(rng, 4)
     pb, qb = rng.normal(size=(4, 3)), random_quats_wxyz(rng, 4)
-    pi, qi = frames.pose_inverse_wxyz(pa, qa)
-    p_id, q_id = frames.pose_compose_wxyz(pa, qa, pi, qi)
+    pi, qi = transforms.pose_inv(pa, qa)
+    p_id, q_id = transforms.pose_mul(pa, qa, pi, qi)
     np.testing.assert_allclose(p_id, 0, atol=1e-12)
     np.testing.assert_allclose(np.abs(q_id[:, 0]), 1, atol=1e-12)
     # compose in XR then convert == convert then compose
-    pc, qc = frames.pose_compose_wxyz(pa, qa, pb, qb)
+    pc, qc = transforms.pose_mul(pa, qa, pb, qb)
     conv = [frames.xr_to_mujoco_pose(p, frames.quat_wxyz_to_xyzw(q))
             for p, q in ((pa, qa), (pb, qb), (pc, qc))]
-    p2, q2 = frames.pose_compose_wxyz(*conv[0], *conv[1])
+    p2, q2 = transforms.pose_mul(*conv[0], *conv[1])
     np.testing.assert_allclose(p2, conv[2][0], atol=1e-12)
     np.testing.assert_allclose(q2, conv[2][1], atol=1e-12)
     assert np.isnan(frames.quat_normalize_wxyz(np.zeros(4))).all()
@@ -372,7 +372,7 @@ def test_capture_hand_frames_match_the_reference_conversion(
         assert (palm_reach < np.linalg.norm(knuckle - wrist, axis=1)).all()
         i, j = JOINT_INDEX["index_proximal"], JOINT_INDEX["index_intermediate"]
         bone = pos[:, j] - pos[:, i]
-        x_axis = frames.quat_rotate_wxyz(np.stack([h.orientations_wxyz[i] for h in hands]),
+        x_axis = transforms.rotate(np.stack([h.orientations_wxyz[i] for h in hands]),
                                          np.array([1.0, 0.0, 0.0]))
         cos = np.sum(bone * x_axis, axis=1) / np.linalg.norm(bone, axis=1)
         assert np.median(cos) > 0.95

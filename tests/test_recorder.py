@@ -157,7 +157,7 @@ def test_round_trip_all_channels(tmp_path: Path) -> None:
 
 def test_contact_frames_are_consistent() -> None:
     """pos_object_m / pos_hand_body_m express the same world point in the other frames."""
-    from teleop import frames
+    from sim import transforms
 
     rng = np.random.default_rng(3)
     q = rng.normal(size=4)
@@ -166,9 +166,9 @@ def test_contact_frames_are_consistent() -> None:
                                  pos_world_m=[0.1, 0.2, 0.3], normal_world=[0.0, 0.0, -1.0],
                                  dist_m=0.0, object_pos_m=[0.5, 0.0, 0.8], object_quat_wxyz=q,
                                  body_pos_m=[0.1, 0.2, 0.25], body_quat_wxyz=[1, 0, 0, 0])
-    p_world, _ = frames.pose_compose_wxyz([0.5, 0.0, 0.8], q, c.pos_object_m, [1, 0, 0, 0])
+    p_world, _ = transforms.pose_mul([0.5, 0.0, 0.8], q, c.pos_object_m, [1, 0, 0, 0])
     np.testing.assert_allclose(p_world, [0.1, 0.2, 0.3], atol=1e-12)
-    np.testing.assert_allclose(frames.quat_rotate_wxyz(q, c.normal_object), [0, 0, -1],
+    np.testing.assert_allclose(transforms.rotate(q, c.normal_object), [0, 0, -1],
                                atol=1e-12)
     np.testing.assert_allclose(c.pos_hand_body_m, [0.0, 0.0, 0.05], atol=1e-12)
 
