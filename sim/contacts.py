@@ -29,6 +29,11 @@ class Contacts:
         return len(self.dist)
 
     @property
+    def points_a(self) -> np.ndarray:
+        """Contact points on the first set's surface (MuJoCo's ``pos`` is the midpoint)."""
+        return self.pos - self.normal * self.dist[:, None] / 2.0
+
+    @property
     def max_penetration_m(self) -> float:
         return float(max(0.0, -self.dist.min())) if len(self) else 0.0
 

@@ -218,6 +218,20 @@ class Validator:
         return contacts_between(scene.model, scene.data, scene.hand_geom_mask, scene.obj_geom_mask,
                                 with_force=with_force)
 
+    def _near_contacts(self, scene: Scene) -> Contacts:
+        """Hand–object contacts and near misses (distance ≤ ``contact_search_m``) of the current
+        placement: object geoms get that margin for one collision pass, then it is restored."""
+        m, d = scene.model, scene.data
+        search_m = self.config.common.contact_search_m
+        saved = m.geom_margin.copy()
+        m.geom_margin[scene.obj_geom_mask] = search_m
+        mujoco.mj_collision(m, d)
+        m.geom_margin[:] = saved
+        near = self._hand_object_contacts(scene)
+        keep = near.dist <= search_m
+        return Contacts(near.pos[keep], near.normal[keep], near.dist[keep], near.body_a[keep],
+                        near.force_n[keep])
+
     def derive_targets(self, scene: Scene, q: np.ndarray) -> GraspTargets:
         """Pregrasp and squeeze joint vectors from the contacts near the placed grasp.
 
@@ -226,19 +240,14 @@ class Validator:
         (by distance − backoff for the pregrasp, distance + squeeze depth for the squeeze).
         """
         m, d, common = scene.model, scene.data, self.config.common
-        saved = m.geom_margin.copy()
-        m.geom_margin[scene.obj_geom_mask] = common.contact_search_m
-        mujoco.mj_collision(m, d)
-        near = self._hand_object_contacts(scene)
-        m.geom_margin[:] = saved
-        keep = near.dist <= common.contact_search_m
+        near = self._near_contacts(scene)
         rows, gaps = [], []
         jacp = np.zeros((3, m.nv))
-        for body in np.unique(near.body_a[keep]):
-            sel = np.flatnonzero(keep & (near.body_a == body))
+        points = near.points_a
+        for body in np.unique(near.body_a):
+            sel = np.flatnonzero(near.body_a == body)
             i = sel[np.argmin(near.dist[sel])]
-            point = near.pos[i] - near.normal[i] * near.dist[i] / 2.0
-            mujoco.mj_jac(m, d, jacp, None, point, int(body))
+            mujoco.mj_jac(m, d, jacp, None, points[i], int(body))
             rows.append(near.normal[i] @ jacp[:, scene.hand_dadr])
             gaps.append(near.dist[i])
         if not rows:
@@ -264,7 +273,8 @@ class Validator:
         m, d = scene.model, scene.data
         steps = max(round(seconds / m.opt.timestep), 0)
         if ctrl_from is None:
-            mujoco.mj_step(m, d, nstep=steps) if steps else None
+            if steps:
+                mujoco.mj_step(m, d, nstep=steps)
             return
         for k in range(steps):
             alpha = (k + 1) / steps
@@ -335,11 +345,8 @@ class Validator:
         scene = self.scene("lift-drop")
         self._place(scene, grasp, q)
         m, d = scene.model, scene.data
-        saved = m.geom_margin.copy()
-        m.geom_margin[scene.obj_geom_mask] = self.config.common.contact_search_m
-        mujoco.mj_collision(m, d)
-        near = self._hand_object_contacts(scene)
-        m.geom_margin[:] = saved
+        near = self._near_contacts(scene)
+        points = near.points_a
         out: dict[str, np.ndarray | None] = {}
         for finger in self.hand.config.fingers:
             body = m.body(HAND_PREFIX + finger.tip_body).id
@@ -347,8 +354,7 @@ class Validator:
             if not sel.any():
                 out[finger.name] = None
                 continue
-            on_hand = near.pos[sel] - near.normal[sel] * near.dist[sel, None] / 2.0
-            local = (on_hand - d.xpos[body]) @ d.xmat[body].reshape(3, 3)
+            local = (points[sel] - d.xpos[body]) @ d.xmat[body].reshape(3, 3)
             out[finger.name] = local.mean(axis=0)
         return out
 
