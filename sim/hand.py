@@ -55,9 +55,9 @@ class Hand:
         self._validate()
         self.joint_names: tuple[str, ...] = tuple(m.joint(j).name for j in range(m.njnt))
         self.nq = m.nq
-        self.lower = m.jnt_range[:, 0].copy()
-        self.upper = np.where(m.jnt_limited, m.jnt_range[:, 1], np.inf)
-        self.lower = np.where(m.jnt_limited, self.lower, -np.inf)
+        limited = m.jnt_limited.astype(bool)  # joint limits, radians/metres (±inf when unlimited)
+        self.lower = np.where(limited, m.jnt_range[:, 0], -np.inf)
+        self.upper = np.where(limited, m.jnt_range[:, 1], np.inf)
         self.kinematics = TreeKinematics(m)
         self.palm_body_id = m.body(config.palm.body).id
         self.tip_body_ids = np.array([m.body(f.tip_body).id for f in config.fingers])

@@ -164,10 +164,10 @@ class ValidationResult:
 
 @dataclass(frozen=True)
 class GraspTargets:
-    """Joint targets derived from a grasp: where to start, what the grasp was, where to squeeze."""
+    """Joint targets derived from a grasp: where to start closing and where to squeeze to, and
+    how many hand bodies were near the object."""
 
     pregrasp: np.ndarray
-    grasp: np.ndarray
     squeeze: np.ndarray
     n_bodies_near: int
 
@@ -251,7 +251,7 @@ class Validator:
             rows.append(near.normal[i] @ jacp[:, scene.hand_dadr])
             gaps.append(near.dist[i])
         if not rows:
-            return GraspTargets(q, q, q, 0)
+            return GraspTargets(q, q, 0)
         jac = np.array(rows) * self._finger_mask
         gaps = np.array(gaps)
         damping = 1e-4
@@ -259,7 +259,7 @@ class Validator:
         pinv = jac.T @ solve
         pre = self.hand.clip(q + pinv @ (gaps - common.pregrasp_backoff_m))
         squeeze = self.hand.clip(q + pinv @ (gaps + common.squeeze_depth_m))
-        return GraspTargets(pre, q, squeeze, len(rows))
+        return GraspTargets(pre, squeeze, len(rows))
 
     def _relative_object_pose(self, scene: Scene) -> tuple[np.ndarray, np.ndarray]:
         palm_pos, palm_quat = scene.palm_world_pose()
