@@ -271,8 +271,11 @@ class WebIngest:
         self.url: str | None = None
         self._own_session = session is None
         self.session = session or zkeys.open_session(listen_port, list(connect_ports))
+        # reliable and blocking as replay: a recording must not lose frames to a busy moment
+        # (on loopback "blocking" is microseconds); express: no batching delay
         self._pub = self.session.declare_publisher(
-            self.keys.hands, congestion_control=zenoh.CongestionControl.DROP, express=True)
+            self.keys.hands, congestion_control=zenoh.CongestionControl.BLOCK,
+            reliability=zenoh.Reliability.RELIABLE, express=True)
         self._subs = [self.session.declare_subscriber(self.keys.view, self._on_view),
                       self.session.declare_subscriber(self.keys.state, self._on_state),
                       self.session.declare_subscriber(self.keys.events, self._on_event)]
@@ -287,8 +290,14 @@ class WebIngest:
             raise WebIngestError(f"{page}: the page assets (index.html, app.js) are missing; "
                                  "reinstall dexaug")
         app.router.add_get("/ws", self._ws_handler)
-        app.router.add_get("/", lambda _r: web.FileResponse(page / "index.html"))
-        app.router.add_get("/favicon.ico", lambda _r: web.Response(status=204))
+        async def index(_request: web.Request) -> web.FileResponse:
+            return web.FileResponse(page / "index.html")
+
+        async def no_icon(_request: web.Request) -> web.Response:
+            return web.Response(status=204)
+
+        app.router.add_get("/", index)
+        app.router.add_get("/favicon.ico", no_icon)
         for name, path in self.config.dev_static.items():
             if not Path(path).is_dir():
                 raise WebIngestError(f"dev_static[{name!r}]: {path} is not a folder")

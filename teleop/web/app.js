@@ -400,6 +400,7 @@ async function enterVR() {
   session.updateRenderState({ baseLayer: new XRWebGLLayer(session, gl) });
   const refSpace = await session.requestReferenceSpace('local-floor');
   stats.sessionActive = true;
+  window.dexaug.session = session;
   $('enter').disabled = true;
   const features = session.enabledFeatures;
   stats.handTracking = features ? features.includes('hand-tracking') : null;
