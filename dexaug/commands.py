@@ -322,6 +322,13 @@ def _bridge_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--duration", type=float, help="stop after this many seconds")
     p.add_argument("--record", type=Path, help="start recording to this MCAP file at once")
     p.add_argument("--no-view", action="store_true", help="do not render the /view stream")
+    p.add_argument("--web", action="store_true",
+                   help="also serve the headset page (WebXR) and its WebSocket ingest")
+    p.add_argument("--web-port", type=int, default=8443, help="port of the headset page")
+    p.add_argument("--cert", type=Path,
+                   help="folder for the self-signed certificate (default $DEXAUG_CACHE_DIR/web-cert)")
+    p.add_argument("--http", action="store_true",
+                   help="plain HTTP (only for localhost, e.g. through `adb reverse`)")
 
 
 @command("bridge", _bridge_args)
@@ -336,9 +343,28 @@ def bridge(args: argparse.Namespace, console: Console) -> int:
     from teleop.bridge import bridge_main
 
     console.print(f"bridge on rig {args.rig!r}, listening on tcp/127.0.0.1:{args.listen}")
-    return bridge_main(args.hand, args.object, args.rig, listen_port=args.listen,
-                       connect_ports=tuple(args.connect), duration_s=args.duration,
-                       record=args.record, view=False if args.no_view else None)
+    ingest, extra_ports = None, ()
+    if args.web:
+        from teleop.keys import free_tcp_port
+        from teleop.web_ingest import WebIngest, WebIngestConfig, local_addresses
+
+        zport = free_tcp_port()  # the ingest's own zenoh peer; the bridge connects to it
+        ingest = WebIngest(args.rig, WebIngestConfig(port=args.web_port, tls=not args.http,
+                                                     cert_dir=args.cert), listen_port=zport)
+        url = ingest.start()
+        extra_ports = (zport,)
+        scheme = url.split(":", 1)[0]
+        lan = [a for a in local_addresses() if a != "127.0.0.1"]
+        console.print(f"headset page: {url}" + "".join(f"  or  {scheme}://{a}:{ingest.port}/"
+                                                        for a in lan), soft_wrap=True)
+    try:
+        return bridge_main(args.hand, args.object, args.rig, listen_port=args.listen,
+                           connect_ports=tuple(args.connect) + extra_ports,
+                           duration_s=args.duration, record=args.record,
+                           view=False if args.no_view else None)
+    finally:
+        if ingest is not None:
+            ingest.close()
 
 
 def _replay_args(p: argparse.ArgumentParser) -> None:
