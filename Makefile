@@ -7,7 +7,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 export MUJOCO_GL ?= egl
 
-.PHONY: demo test lint bench clean gl
+.PHONY: demo test lint bench clean gl browser
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -22,10 +22,23 @@ gl:
 	       && (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libegl1 libosmesa6 >/dev/null) \
 	       || echo "note: no EGL/OSMesa library; rendering tests will be skipped"; }
 
+# Browser tests (the headset page) need Debian's Chromium and the pinned IWER npm package; install
+# them when we may (root + apt-get; npm), else the tests skip saying why.
+IWER_VERSION := 2.5.0
+NODE_PREFIX := $(VENV)/node
+browser: $(STAMP)
+	@command -v chromium >/dev/null \
+	  || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null \
+	       && (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null) \
+	       || echo "note: no chromium; browser tests will be skipped"; }
+	@grep -qs '"version": "$(IWER_VERSION)"' $(NODE_PREFIX)/node_modules/iwer/package.json \
+	  || { command -v npm >/dev/null && npm install --silent --no-audit --no-fund --prefix $(NODE_PREFIX) iwer@$(IWER_VERSION) >/dev/null \
+	       || echo "note: no npm or iwer@$(IWER_VERSION) not installable; browser tests will be skipped"; }
+
 demo: $(STAMP)
 	$(BIN)/dexaug demo
 
-test: $(STAMP) gl
+test: $(STAMP) gl browser
 	$(BIN)/ruff check .
 	$(BIN)/python -m pytest -q
 
