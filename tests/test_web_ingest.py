@@ -6,7 +6,6 @@ from __future__ import annotations
 import asyncio
 import json
 import ssl
-import threading
 import time
 
 import numpy as np
@@ -29,7 +28,7 @@ from teleop.webxr import hand_frame_from_webxr
 def _hand(seed: int) -> np.ndarray:
     rng = np.random.default_rng(seed)
     j = np.zeros((25, 8))
-    j[:, :3] = rng.normal(0, 0.05, (25, 3)) + [0.1, 1.2, -0.3]
+    j[:, :3] = rng.normal(0, 0.05, (25, 3)) + np.array([0.1, 1.2, -0.3])
     q = rng.normal(size=(25, 4))
     j[:, 3:7] = q / np.linalg.norm(q, axis=1, keepdims=True)
     j[:, 7] = 0.01
@@ -82,7 +81,7 @@ def test_websocket_protocol_frames_control_refusal(tmp_path, caplog):
                                             status_period_s=0.2), listen_port=zport)
     ingest.start()
     peer = keys.open_session(connect_ports=[zport])
-    got, lock = [], threading.Lock()
+    got: list = []
     sub = peer.declare_subscriber(keys.RigKeys(rig).hands,
                                   lambda s: got.append(decode(s.payload.to_bytes())))
     calls = []
