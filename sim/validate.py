@@ -3,8 +3,28 @@
 The augmenter only checks grasps analytically; a grasp is kept when it also holds in simulation.
 From a grasp (palm pose in the object frame + joint vector) the validator derives a pregrasp and
 a squeeze target itself: it finds the hand bodies near the object, and moves their closest
-points back along the contact normals (pregrasp) or into the object (squeeze) with damped
-least squares on the contact Jacobians, so it works for any hand without per-hand closing rules.
+points back along the contact normals (pregrasp) or onto the object surface (squeeze) with
+damped least squares on the contact Jacobians, so it works for any hand without per-hand closing
+rules.
+
+The squeeze is sized by force, not by depth. A position servo presses only as hard as its target
+lies beyond where the finger stops, so a fixed depth gives a force that depends on the hand's
+gains (the Menagerie Shadow Hand's ≈ 1 N·m/rad servos give ≈ 1 N per fingertip for 8 mm, too
+little to lift a sugar box with a fingertip grasp), and a fixed larger depth crushes light objects
+out of a pinch. Each grasping contact i (one per hand body near the object) is given a desired
+normal force ``f_i = max(grip_safety · m·g·(1 + d/ρ) / (μ · n_contacts), min_grip_force_n)``
+(d: centre of mass to the contacts' centroid, ρ: the contacts' spread), so that the friction of
+all contacts carries ``grip_safety`` times the object's weight and its moment about the grasp,
+and the target is
+
+    q_squeeze = q + J⁺ (gaps + squeeze_depth_m) + K_q⁺ Jᵀ f
+
+where J holds the contact-normal rows of the finger Jacobians and ``K_q = Mᵀ diag(k) M`` is the
+joint-space stiffness of the hand's servos, from the actuator moment matrix M and each
+actuator's position stiffness k (``−biasprm[1]`` of an affine-bias actuator: the force per unit
+of length error at a fixed control). ``K_q⁺`` is a damped pseudo-inverse because coupled tendon
+joints (one actuator for two joints) make K_q singular. Actuator force limits saturate in the
+simulation, as on a real hand. Both protocols close onto the same targets.
 Simulation is deterministic: the same grasp gives the same result on any worker.
 """
 
@@ -28,6 +48,13 @@ from sim.scene import HAND_PREFIX, OBJECT_HOME, PhysicsOptions, Scene
 from sim.transforms import pose_inv, pose_mul, quat_angle, rotate
 
 PROTOCOLS = ("lift-drop", "six-dir")
+GRAVITY_MPS2 = 9.81
+# relative damping of the pseudo-inverses: the contact Jacobian's (m², as J Jᵀ) and the joint
+# stiffness's (times its largest eigenvalue; only makes singular directions harmless)
+_JAC_DAMPING_M2 = 1e-4
+_STIFFNESS_DAMPING = 1e-3
+# smallest lever arm (metres) credited to a grasp's friction torque: about a fingertip pad
+_MIN_LEVER_M = 0.005
 SIX_DIRECTIONS = {"+x": (1, 0, 0), "-x": (-1, 0, 0), "+y": (0, 1, 0), "-y": (0, -1, 0),
                   "+z": (0, 0, 1), "-z": (0, 0, -1)}
 
@@ -48,6 +75,8 @@ class CommonParams:
     contact_search_m: float
     pregrasp_backoff_m: float
     squeeze_depth_m: float
+    grip_safety: float
+    min_grip_force_n: float
     close_time_s: float
     settle_time_s: float
     contact: ContactParams
@@ -90,18 +119,22 @@ class ValidateConfig:
         root.reject_unknown({"common", "lift_drop", "six_dir"})
         c = root.section("common")
         c.reject_unknown({"max_penetration_m", "contact_search_m", "pregrasp_backoff_m",
-                          "squeeze_depth_m", "close_time_s", "settle_time_s", "friction",
-                          "solref", "gws_mu"})
+                          "squeeze_depth_m", "grip_safety", "min_grip_force_n", "close_time_s",
+                          "settle_time_s", "friction", "solref", "gws_mu"})
         pos = {"min": 0.0}
+        friction = tuple(c.floats("friction", 3))
+        if friction[0] <= 0.0:  # the grip force is weight / friction
+            raise c.error("friction", f"sliding friction must be > 0, got {friction[0]}")
         common = CommonParams(
             max_penetration_m=c.float("max_penetration_m", **pos),
             contact_search_m=c.float("contact_search_m", **pos),
             pregrasp_backoff_m=c.float("pregrasp_backoff_m", **pos),
             squeeze_depth_m=c.float("squeeze_depth_m", **pos),
+            grip_safety=c.float("grip_safety", **pos),
+            min_grip_force_n=c.float("min_grip_force_n", **pos),
             close_time_s=c.float("close_time_s", min=1e-3),
             settle_time_s=c.float("settle_time_s", **pos),
-            contact=ContactParams(friction=tuple(c.floats("friction", 3)),
-                                  solref=tuple(c.floats("solref", 2))),
+            contact=ContactParams(friction=friction, solref=tuple(c.floats("solref", 2))),
             gws_mu=c.float("gws_mu", min=0.0))
         ld = root.section("lift_drop")
         ld.reject_unknown({"timestep_s", "impratio", "lift_height_m", "lift_time_s", "hold_time_s",
@@ -164,12 +197,14 @@ class ValidationResult:
 
 @dataclass(frozen=True)
 class GraspTargets:
-    """Joint targets derived from a grasp: where to start closing and where to squeeze to, and
-    how many hand bodies were near the object."""
+    """Joint targets derived from a grasp: where to start closing and where to squeeze to, how
+    many hand bodies were near the object, and the normal force (newtons) the squeeze target
+    asks of each of them."""
 
     pregrasp: np.ndarray
     squeeze: np.ndarray
     n_bodies_near: int
+    grip_force_n: float = 0.0
 
 
 class Validator:
@@ -232,16 +267,66 @@ class Validator:
         return Contacts(near.pos[keep], near.normal[keep], near.dist[keep], near.body_a[keep],
                         near.force_n[keep])
 
+    def grip_force_n(self, scene: Scene, points: np.ndarray) -> float:
+        """Desired normal force (newtons) per grasping contact, for contacts at ``points`` (n, 3).
+
+        Friction must carry the object's weight W and its moment about the grasp: with the
+        centre of mass a distance d from the contacts' centroid and the contacts spread ρ (RMS)
+        around it, friction forces hold a torque of about μ·Σf·ρ, so Σf ≥ W·(1 + d/ρ)/μ covers
+        both (conservatively, as if they added). Scaled by ``grip_safety``, split over the n
+        contacts, never less than ``min_grip_force_n``.
+        """
+        common, d = self.config.common, scene.data
+        weight_n = scene.obj_mass_kg * GRAVITY_MPS2
+        mu = common.contact.friction[0]
+        centroid = points.mean(axis=0)
+        spread_m = max(float(np.sqrt(((points - centroid) ** 2).sum(axis=1).mean())), _MIN_LEVER_M)
+        offset_m = float(np.linalg.norm(d.xipos[scene.obj_body] - centroid))
+        total_n = common.grip_safety * weight_n * (1.0 + offset_m / spread_m) / mu
+        return max(total_n / len(points), common.min_grip_force_n)
+
+    def joint_stiffness(self, scene: Scene) -> np.ndarray:
+        """Joint-space stiffness (nq × nq over the hand's joints; N·m/rad for hinges) of the
+        hand's finger servos at the current state: ``K_q = Mᵀ diag(k) M``.
+
+        M is the actuator moment matrix (∂ actuator length / ∂ q, gear included) of the hand's
+        actuators and k each actuator's position stiffness at a fixed control: ``−biasprm[1]``
+        for a fixed-gain, affine-bias actuator (a position servo: kp), 0 for anything else (a
+        motor holds no position). Rows and columns outside the finger joints are zero, since the
+        squeeze moves fingers only. Needs ``mj_forward`` (or ``mj_fwdPosition``) to have run.
+        """
+        m, d = scene.model, scene.data
+        moment = np.zeros((m.nu, m.nv))
+        mujoco.mju_sparse2dense(moment, d.actuator_moment, d.moment_rownnz, d.moment_rowadr,
+                                d.moment_colind)
+        acts = scene.hand_act
+        servo = ((m.actuator_gaintype[acts] == int(mujoco.mjtGain.mjGAIN_FIXED))
+                 & (m.actuator_biastype[acts] == int(mujoco.mjtBias.mjBIAS_AFFINE)))
+        k = np.where(servo, np.maximum(-m.actuator_biasprm[acts, 1], 0.0), 0.0)
+        arm = moment[np.ix_(acts, scene.hand_dadr)] * self._finger_mask
+        return arm.T @ (k[:, None] * arm)
+
+    @staticmethod
+    def _stiffness_pinv(stiffness: np.ndarray) -> np.ndarray:
+        """Damped pseudo-inverse s / (s² + λ²) per eigenvalue s of a symmetric stiffness: ≈ 1/s
+        where the servos are stiff, → 0 (not 1/λ) along directions no actuator resists, such as
+        the difference of two tendon-coupled joints."""
+        s, v = np.linalg.eigh(stiffness)
+        lam = _STIFFNESS_DAMPING * max(float(s.max(initial=0.0)), 1e-12)
+        return (v * (s / (s * s + lam * lam))) @ v.T
+
     def derive_targets(self, scene: Scene, q: np.ndarray) -> GraspTargets:
         """Pregrasp and squeeze joint vectors from the contacts near the placed grasp.
 
         Object geoms get a temporary margin of ``contact_search_m`` so MuJoCo reports near
         misses with their distance; per hand body the closest point is moved along its normal
-        (by distance − backoff for the pregrasp, distance + squeeze depth for the squeeze).
+        (by distance − backoff for the pregrasp, distance + squeeze depth for the squeeze). The
+        squeeze then adds the servo deflection ``K_q⁺ Jᵀ f`` that presses each of those points
+        into the object with the grip force f (module docstring).
         """
         m, d, common = scene.model, scene.data, self.config.common
         near = self._near_contacts(scene)
-        rows, gaps = [], []
+        rows, gaps, closest = [], [], []
         jacp = np.zeros((3, m.nv))
         points = near.points_a
         for body in np.unique(near.body_a):
@@ -250,16 +335,22 @@ class Validator:
             mujoco.mj_jac(m, d, jacp, None, points[i], int(body))
             rows.append(near.normal[i] @ jacp[:, scene.hand_dadr])
             gaps.append(near.dist[i])
+            closest.append(points[i])
         if not rows:
             return GraspTargets(q, q, 0)
         jac = np.array(rows) * self._finger_mask
         gaps = np.array(gaps)
-        damping = 1e-4
-        solve = np.linalg.solve(jac @ jac.T + damping * np.eye(len(rows)), np.eye(len(rows)))
+        solve = np.linalg.solve(jac @ jac.T + _JAC_DAMPING_M2 * np.eye(len(rows)),
+                                np.eye(len(rows)))
         pinv = jac.T @ solve
         pre = self.hand.clip(q + pinv @ (gaps - common.pregrasp_backoff_m))
-        squeeze = self.hand.clip(q + pinv @ (gaps + common.squeeze_depth_m))
-        return GraspTargets(pre, squeeze, len(rows))
+        force_n = self.grip_force_n(scene, np.array(closest))
+        # joint torques that press every contact with force_n (normals point into the object),
+        # and the servo deflection that produces them
+        torque = jac.T @ np.full(len(rows), force_n)
+        deflection = self._stiffness_pinv(self.joint_stiffness(scene)) @ torque
+        squeeze = self.hand.clip(q + pinv @ (gaps + common.squeeze_depth_m) + deflection)
+        return GraspTargets(pre, squeeze, len(rows), force_n)
 
     def _relative_object_pose(self, scene: Scene) -> tuple[np.ndarray, np.ndarray]:
         palm_pos, palm_quat = scene.palm_world_pose()
@@ -379,7 +470,7 @@ class Validator:
         m, d, p = scene.model, scene.data, self.config.lift_drop
         ref_pos, ref_quat = self._relative_object_pose(scene)
         start = d.mocap_pos[scene.mocap_id].copy()
-        m.opt.gravity[:] = (0.0, 0.0, -9.81)
+        m.opt.gravity[:] = (0.0, 0.0, -GRAVITY_MPS2)
         lift_steps = max(round(p.lift_time_s / m.opt.timestep), 1)
         chunk = max(lift_steps // 50, 1)
         ok = True
@@ -414,7 +505,7 @@ class Validator:
         """
         m, p = scene.model, self.config.lift_drop
         _, palm_quat = scene.palm_world_pose()
-        m.opt.gravity[:] = 9.81 * rotate(palm_quat, np.array([0.0, 1.0, 0.0]))
+        m.opt.gravity[:] = GRAVITY_MPS2 * rotate(palm_quat, np.array([0.0, 1.0, 0.0]))
         ctrl_sq = self.hand.ctrl_for(targets.squeeze)
         ctrl_open = self.hand.ctrl_for(self.hand.open_pose)
         self._run(scene, 0.5 * p.drop_time_s, ctrl_sq, ctrl_open)

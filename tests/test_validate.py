@@ -4,6 +4,7 @@ beside the object, a grasp on air and a deeply interpenetrating grasp fail, each
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -118,4 +119,57 @@ def test_validate_config_errors_name_the_key(tmp_path: Path) -> None:
     bad = tmp_path / "validate.toml"
     bad.write_text(text.replace("hold_time_s = 1.0", "hold_time_s = -1.0"))
     with pytest.raises(ConfigError, match=r"validate\.toml: lift_drop\.hold_time_s"):
+        ValidateConfig.load(bad)
+
+
+def _normal_force_after_closing(validator: Validator, grasp: Grasp) -> tuple[float, int]:
+    """Total hand–object normal force (newtons) after closing with gravity off, and the number
+    of grasping contacts the squeeze target was sized for."""
+    scene = validator.scene("lift-drop")
+    q = validator.hand.check_q(grasp.joints)
+    validator._place(scene, grasp, q)  # gravity off
+    targets = validator.derive_targets(scene, q)
+    validator._close(scene, targets)
+    contacts = validator._hand_object_contacts(scene, with_force=True)
+    return float(contacts.force_n.sum()), targets.n_bodies_near
+
+
+def test_squeeze_presses_with_the_intended_force(shadow: Hand, references) -> None:
+    # the force part of the squeeze target alone: raising the per-contact force by Δf must raise
+    # the simulated normal force by about n·Δf (servo stiffness from the actuator model, contact
+    # Jacobians); a wrong stiffness, sign or missing deflection moves the ratio far from 1. The
+    # soup can's reference grasp is used because its near bodies all end up touching (the sugar
+    # box's thumb base stays 9 mm off, so its share is pressed through other links: ratio ≈ 0.5)
+    obj = "005_tomato_soup_can"
+    base = ValidateConfig.load()
+    totals = []
+    for force_n in (1.0, 3.0):
+        common = replace(base.common, grip_safety=0.0, min_grip_force_n=force_n)
+        validator = Validator(shadow, load_object(obj), replace(base, common=common))
+        total_n, n_contacts = _normal_force_after_closing(validator, references[obj])
+        totals.append(total_n)
+    ratio = (totals[1] - totals[0]) / (n_contacts * 2.0)
+    assert 0.6 < ratio < 1.6, (totals, n_contacts)
+
+
+def test_grip_force_is_sized_by_weight_and_friction(validators, references) -> None:
+    validator = validators["004_sugar_box"]
+    scene = validator.scene("lift-drop")
+    q = validator.hand.check_q(references["004_sugar_box"].joints)
+    validator._place(scene, references["004_sugar_box"], q)
+    targets = validator.derive_targets(scene, q)
+    common = validator.config.common
+    at_least = common.grip_safety * scene.obj_mass_kg * 9.81 / (
+        common.contact.friction[0] * targets.n_bodies_near)
+    assert targets.grip_force_n >= max(at_least, common.min_grip_force_n)
+    assert targets.grip_force_n < 20 * at_least  # the moment term stays bounded
+
+
+def test_validate_config_rejects_frictionless_contacts(tmp_path: Path) -> None:
+    from sim.paths import CONFIG_DIR
+
+    text = (CONFIG_DIR / "validate.toml").read_text()
+    bad = tmp_path / "validate.toml"
+    bad.write_text(text.replace("friction = [0.8,", "friction = [0.0,"))
+    with pytest.raises(ConfigError, match=r"validate\.toml: common\.friction"):
         ValidateConfig.load(bad)
