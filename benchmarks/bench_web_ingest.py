@@ -26,9 +26,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from sim.paths import SHARED_ASSETS  # noqa: E402
-from tests.browser import (CHROMIUM, CHROMIUM_ARGS, chromium_missing,  # noqa: E402
-                           iwer_build_dir, iwer_missing)
+from sim.paths import SHARED_ASSETS
+from tests.browser import CHROMIUM, CHROMIUM_ARGS, chromium_missing, iwer_build_dir, iwer_missing
 
 CAPTURE_DIR = SHARED_ASSETS / "handdata" / "quest3_webxr"
 
