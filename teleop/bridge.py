@@ -52,14 +52,14 @@ import numpy as np
 import zenoh
 
 from sim.config import Section, load_toml
-from sim.contacts import contacts_between
 from sim.hand import Hand
 from sim.objects import load_object
-from sim.scene import HAND_PREFIX, PhysicsOptions, Scene
+from sim.scene import PhysicsOptions, Scene
 from teleop import keys as zkeys
 from teleop.messages import MAGIC, SCHEMA_VERSION, HandFrame, MessageError, decode
 from teleop.recorder import SessionRecorder
 from teleop.retarget import TELEOP_CONFIG, Retargeter, load_retarget_config
+from teleop.scene_contacts import contact_records, tip_finger_bodies
 from teleop.schemas import ContactRecord, finite_list
 
 logger = logging.getLogger(__name__)
@@ -219,10 +219,7 @@ class Bridge:
         self.scene = Scene(self.hand, obj, table=self.config.table,
                            physics=PhysicsOptions(timestep_s=self.config.timestep_s))
         self.object_name = object_name
-        m = self.scene.model
-        self._tip_fingers = {int(m.body(HAND_PREFIX + self.hand.model.body(b).name).id): f
-                             for b, f in zip(self.hand.tip_body_ids, self.hand.finger_names,
-                                             strict=True)}
+        self._tip_fingers = tip_finger_bodies(self.scene)
         self._object_home = self._home_pose(obj)
         self.scene.set_object_pose(*self._object_home)
         q = getattr(self, "_q_target", None)
@@ -451,21 +448,7 @@ class Bridge:
 
     def contacts(self) -> list[ContactRecord]:
         """Hand–object contacts of the current state, in world, object and hand-body frames."""
-        sc = self.scene
-        c = contacts_between(sc.model, sc.data, sc.hand_geom_mask, sc.obj_geom_mask)
-        if len(c.dist) == 0:
-            return []
-        opos, oquat = sc.object_pose()
-        out = []
-        for i in range(len(c.dist)):
-            b = int(c.body_a[i])
-            out.append(ContactRecord.from_world(
-                finger=self._tip_fingers.get(b), hand_body=sc.model.body(b).name[len(HAND_PREFIX):]
-                if sc.model.body(b).name.startswith(HAND_PREFIX) else sc.model.body(b).name,
-                pos_world_m=c.pos[i], normal_world=c.normal[i], dist_m=float(c.dist[i]),
-                object_pos_m=opos, object_quat_wxyz=oquat, body_pos_m=sc.data.xpos[b],
-                body_quat_wxyz=sc.data.xquat[b]))
-        return out
+        return contact_records(self.scene, self._tip_fingers)
 
     def _publish_state(self, t_rx: float | None) -> None:
         sc = self.scene

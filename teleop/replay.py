@@ -29,7 +29,7 @@ from teleop.session import open_session
 logger = logging.getLogger(__name__)
 
 
-def _publisher(session: zenoh.Session, rig: str, wait_for_subscriber_s: float
+def hands_publisher(session: zenoh.Session, rig: str, wait_for_subscriber_s: float
                ) -> zenoh.Publisher:
     """A blocking, reliable publisher on the rig's ``/hands``; waits (up to the limit) until
     some subscriber matches, so the first frames are not published into the void."""
@@ -46,7 +46,7 @@ def _publisher(session: zenoh.Session, rig: str, wait_for_subscriber_s: float
     return pub
 
 
-def _play(pub: zenoh.Publisher, items: Iterable[tuple[float, bytes]], rate: float | str) -> int:
+def play(pub: zenoh.Publisher, items: Iterable[tuple[float, bytes]], rate: float | str) -> int:
     """Publish (time_s, payload) pairs with the timing of ``rate``; returns the count."""
     if rate != "max" and (not isinstance(rate, (int, float)) or rate <= 0):
         raise ValueError(f"rate must be a positive number or 'max', got {rate!r}")
@@ -72,9 +72,9 @@ def replay(path: Path | str, session: zenoh.Session, rig: str, rate: float | str
     sess = open_session(path)
     items = ((m.log_time_ns * 1e-9, m.data)
              for m in sess.messages(TOPIC_HANDS, decode=False))
-    pub = _publisher(session, rig, wait_for_subscriber_s)
+    pub = hands_publisher(session, rig, wait_for_subscriber_s)
     try:
-        n = _play(pub, items, rate)
+        n = play(pub, items, rate)
     finally:
         pub.undeclare()
     logger.info("replayed %d /hands messages of %s", n, path)
@@ -86,8 +86,8 @@ def replay_capture(frames: Sequence[HandFrame], session: zenoh.Session, rig: str
     """Publish a list of frames (e.g. :func:`teleop.webxr.iwer_hand_frames` of a Quest capture),
     encoded as ingest would, timed by their ``device_time_s``. Returns the count."""
     payloads = [(f.device_time_s, encode(f)) for f in frames]
-    pub = _publisher(session, rig, wait_for_subscriber_s)
+    pub = hands_publisher(session, rig, wait_for_subscriber_s)
     try:
-        return _play(pub, payloads, rate)
+        return play(pub, payloads, rate)
     finally:
         pub.undeclare()

@@ -1,0 +1,342 @@
+"""Grasp demonstrations extracted from recorded sessions (DESIGN §6, "demo extraction").
+
+A demo is what the augmenter needs of one human grasp: the object, the hand's joint angles,
+frame_palm in the object frame, and per finger the contact centroid in its fingertip body frame
+(AutoWS centres the contact faces there) — plus where it came from (session file, log time).
+
+Where the grasp moment is. A bridge recording holds ``/state`` (simulated qpos, palm and object
+poses in the world) and ``/contacts`` (hand–object contacts, tagged with the finger whose tip
+body touches) at the same log times. A *stable grasp* is a run of states in which at least
+``min_fingers`` fingertips touch the object, the hand's most important finger (its first in
+priority order: the thumb for the Shadow Hand) among them, lasting at least ``min_duration_s``;
+the moment inside a run is the state with the most fingertips in contact (the middle one of
+those, for ties). Contact losses shorter than ``max_gap_s`` do not split a run.
+An operator's ``grasp_mark`` event is an explicit moment: the state it names
+(``seq``) or the last one logged before it; when that state has too few fingertip contacts, the
+best state within ``mark_window_s`` is taken instead, and a mark with none is reported, not
+silently dropped. A mark within ``mark_window_s`` of a stable run replaces that run's own
+moment (one demo per grasp).
+
+Why simulated contacts and not the operator's hand: the augmenter works on the robot hand's
+grasp, and the recording's contacts are the robot's, in the robot fingertip frames.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from augment.workspace import DemoSeed
+from sim.errors import DexaugError
+from sim.grasp import Grasp
+from sim.io import write_bytes_atomic
+from sim.transforms import pose_inv, pose_mul
+from teleop.schemas import TOPIC_CONTACTS, TOPIC_STATE
+from teleop.session import Session, SessionError, open_session
+
+__all__ = ["Demo", "DemoError", "DemoParams", "extract_demos", "load_demo", "resolve_demo", "save_demo"]
+
+DEMO_FORMAT = "dexaug-demo-1"
+
+log = logging.getLogger(__name__)
+
+
+class DemoError(DexaugError):
+    """A session holds no usable grasp demonstration; the message says why."""
+
+
+@dataclass(frozen=True)
+class DemoParams:
+    """Grasp-moment detection. ``min_fingers`` fingertips (the first finger of the hand among
+    them) in contact for at least ``min_duration_s`` seconds, losses shorter than
+    ``max_gap_s`` bridged; a ``grasp_mark`` belongs to a contact run within ``mark_window_s``
+    seconds of it, and may look that far either side for a state with enough contacts."""
+
+    min_fingers: int = 2
+    min_duration_s: float = 0.3
+    max_gap_s: float = 0.25
+    mark_window_s: float = 0.5
+
+
+@dataclass(frozen=True, eq=False)
+class Demo:
+    """One grasp demonstration.
+
+    Attributes:
+        id: ``<session stem>@<seconds into the session>`` (provenance, cache keys).
+        hand, object: hand config and object names.
+        joints: (nq,) simulated joint angles at the grasp moment, radians, model order.
+        palm_pos_m, palm_quat_wxyz: frame_palm in the object frame.
+        tip_contacts: finger → (3,) mean contact point in that finger's tip body frame, metres
+            (fingers that did not touch are absent).
+        contact_points_obj: finger → (k,3) the contact points in the object frame, metres.
+        source: the session file; time_s: seconds from the session start; how: "grasp_mark"
+            or "stable contact"; duration_s: length of the stable run (0 for a lone mark).
+    """
+
+    id: str
+    hand: str
+    object: str
+    joints: np.ndarray
+    palm_pos_m: np.ndarray
+    palm_quat_wxyz: np.ndarray
+    tip_contacts: dict[str, np.ndarray]
+    contact_points_obj: dict[str, np.ndarray]
+    source: Path
+    time_s: float
+    how: str
+    duration_s: float = 0.0
+    fingers: tuple[str, ...] = field(default=())
+
+    @property
+    def grasp(self) -> Grasp:
+        return Grasp.from_arrays(self.palm_pos_m, self.palm_quat_wxyz, self.joints)
+
+    def seed(self) -> DemoSeed:
+        """The AutoWS seed (demonstration-centred joint grids and contact faces)."""
+        return DemoSeed(self.joints, dict(self.tip_contacts), self.id)
+
+
+@dataclass
+class _Track:
+    """Per-state arrays of a session: log times (ns), seq, qpos, poses, fingertip contacts."""
+
+    t_ns: np.ndarray
+    seq: list[int | None]
+    states: list[dict[str, Any]]
+    contacts: list[list[dict[str, Any]]]
+    fingers_touching: list[frozenset[str]]
+
+
+def _track(session: Session, fingers: tuple[str, ...]) -> _Track:
+    where = session.path
+    for topic in (TOPIC_STATE, TOPIC_CONTACTS):
+        if not session.counts.get(topic):
+            raise DemoError(f"{where}: no {topic} messages; the session holds raw input only "
+                            f"(record it through the bridge: `dexaug rerecord {where} OUT.mcap`)")
+    states = session.json_messages(TOPIC_STATE)
+    by_time = {t: c for t, c in session.json_messages(TOPIC_CONTACTS)}
+    known = set(fingers)
+    t_ns, seq, st, con, touching = [], [], [], [], []
+    for t, s in states:
+        c = [x for x in by_time.get(t, {}).get("contacts", []) if x.get("finger") in known]
+        t_ns.append(t)
+        seq.append(s.get("seq"))
+        st.append(s)
+        con.append(c)
+        touching.append(frozenset(x["finger"] for x in c))
+    return _Track(np.asarray(t_ns, np.int64), seq, st, con, touching)
+
+
+def _runs(ok: np.ndarray) -> list[tuple[int, int]]:
+    """[start, stop) index ranges of the True runs of ``ok``."""
+    edges = np.diff(np.concatenate([[0], ok.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True))
+
+
+def _merged_runs(t_ns: np.ndarray, ok: np.ndarray, max_gap_s: float) -> list[tuple[int, int]]:
+    """True runs of ``ok`` with gaps shorter than ``max_gap_s`` bridged: a fingertip that
+    flickers off for a few frames while the object is held is the same grasp."""
+    merged: list[tuple[int, int]] = []
+    for lo, hi in _runs(ok):
+        if merged and (int(t_ns[lo]) - int(t_ns[merged[-1][1] - 1])) * 1e-9 <= max_gap_s:
+            merged[-1] = (merged[-1][0], hi)
+        else:
+            merged.append((lo, hi))
+    return merged
+
+
+def _best_in(track: _Track, lo: int, hi: int) -> int:
+    n = np.array([len(track.fingers_touching[i]) for i in range(lo, hi)])
+    best = np.flatnonzero(n == n.max())
+    return lo + int(best[len(best) // 2])
+
+
+def _demo_at(session: Session, track: _Track, i: int, hand: str, obj: str, how: str,
+             duration_s: float) -> Demo:
+    s = track.states[i]
+    joints = np.asarray(s["qpos"], float)
+    inv_p, inv_q = pose_inv(np.asarray(s["object_pos_m"], float),
+                            np.asarray(s["object_quat_wxyz"], float))
+    palm_p, palm_q = pose_mul(inv_p, inv_q, np.asarray(s["palm_pos_m"], float),
+                              np.asarray(s["palm_quat_wxyz"], float))
+    tip: dict[str, np.ndarray] = {}
+    pts: dict[str, np.ndarray] = {}
+    for finger in sorted(track.fingers_touching[i]):
+        mine = [c for c in track.contacts[i] if c["finger"] == finger]
+        tip[finger] = np.mean([c["pos_hand_body_m"] for c in mine], axis=0)
+        pts[finger] = np.array([c["pos_object_m"] for c in mine], float)
+    t_s = (int(track.t_ns[i]) - int(session.start_time_ns or track.t_ns[0])) * 1e-9
+    return Demo(id=f"{session.path.stem}@{t_s:.2f}s", hand=hand, object=obj, joints=joints,
+                palm_pos_m=palm_p, palm_quat_wxyz=palm_q, tip_contacts=tip,
+                contact_points_obj=pts, source=session.path, time_s=t_s, how=how,
+                duration_s=duration_s, fingers=tuple(sorted(track.fingers_touching[i])))
+
+
+def extract_demos(path: Path | str, params: DemoParams | None = None) -> list[Demo]:
+    """All grasp demonstrations of the session at ``path`` (module docstring), in time order.
+
+    Raises:
+        DemoError: the session names no hand or object, was recorded without the bridge, or
+            holds no grasp (the message gives the longest contact run found and why it fell
+            short), or cannot be read (damaged, not MCAP: the reader's message).
+    """
+    p = params or DemoParams()
+    try:
+        session = open_session(path)
+    except SessionError as exc:
+        raise DemoError(str(exc)) from None
+    meta = session.metadata
+    hand, obj = meta.get("hand"), meta.get("object")
+    if not hand:
+        raise DemoError(f"{path}: session metadata names no hand (key 'hand')")
+    if not obj:
+        raise DemoError(f"{path}: session has no object (metadata key 'object'); a demo needs "
+                        f"the grasped object")
+    fingers = tuple(meta.get("fingers") or ())
+    if not fingers:
+        raise DemoError(f"{path}: session metadata lists no fingers (key 'fingers')")
+    if session.truncated:
+        log.warning("%s is truncated at byte %d (recorder did not close it); using what is "
+                    "readable", path, session.stop_offset)
+    track = _track(session, fingers)
+    if not len(track.t_ns):
+        raise DemoError(f"{path}: no states")
+    lead = fingers[0]
+    n_touch = np.array([len(f) for f in track.fingers_touching])
+    ok = np.array([lead in f for f in track.fingers_touching]) & (n_touch >= p.min_fingers)
+    runs = []
+    for lo, hi in _merged_runs(track.t_ns, ok, p.max_gap_s):
+        dur = (int(track.t_ns[hi - 1]) - int(track.t_ns[lo])) * 1e-9
+        if dur >= p.min_duration_s:
+            runs.append((lo, hi, dur))
+    marks = _mark_states(session, track, p, lead, ok)
+    window_ns = p.mark_window_s * 1e9
+    moments: dict[int, tuple[str, float]] = {}
+    for lo, hi, dur in runs:
+        near = [m for m in marks
+                if track.t_ns[lo] - window_ns <= track.t_ns[m] <= track.t_ns[hi - 1] + window_ns]
+        marks = [m for m in marks if m not in near]
+        moments[near[0] if near else _best_in(track, lo, hi)] = (
+            "grasp_mark" if near else "stable contact", dur)
+    for m in marks:
+        moments[m] = ("grasp_mark", 0.0)
+    if not moments:
+        raise DemoError(f"{path}: no usable grasp: {_why_not(track, n_touch, ok, lead, p)}")
+    return [_demo_at(session, track, i, hand, obj, how, dur)
+            for i, (how, dur) in sorted(moments.items())]
+
+
+def _mark_states(session: Session, track: _Track, p: DemoParams, lead: str,
+                 ok: np.ndarray) -> list[int]:
+    """State indices of the ``grasp_mark`` events that have a usable state nearby."""
+    out = []
+    for t, ev in session.events():
+        if ev.get("type") != "grasp_mark":
+            continue
+        payload = ev.get("payload") or {}
+        seq = payload.get("seq")
+        hits = [i for i, s in enumerate(track.seq) if seq is not None and s == seq]
+        i = hits[-1] if hits else max(int(np.searchsorted(track.t_ns, t, side="right")) - 1, 0)
+        if ok[i]:
+            out.append(i)
+            continue
+        win = np.flatnonzero(ok & (np.abs(track.t_ns - track.t_ns[i]) <= p.mark_window_s * 1e9))
+        if len(win):
+            out.append(int(win[np.argmin(np.abs(win - i))]))
+        else:
+            log.warning("%s: grasp_mark at %.2f s has no state with >= %d fingertips (%s among "
+                        "them) touching the object within %.1f s; ignored", session.path,
+                        (t - (session.start_time_ns or t)) * 1e-9, p.min_fingers, lead,
+                        p.mark_window_s)
+    return out
+
+
+def _why_not(track: _Track, n_touch: np.ndarray, ok: np.ndarray, lead: str,
+             p: DemoParams) -> str:
+    if not n_touch.any():
+        return "no fingertip ever touched the object"
+    if not ok.any():
+        most = max(track.fingers_touching, key=len)
+        return (f"never {p.min_fingers} fingertips with the {lead} among them in contact (most "
+                f"at once: {sorted(most)})")
+    longest = max((int(track.t_ns[hi - 1]) - int(track.t_ns[lo])) * 1e-9 for lo, hi in _runs(ok))
+    return (f"the longest contact with >= {p.min_fingers} fingertips lasted {longest:.2f} s, "
+            f"less than {p.min_duration_s} s, and no grasp_mark event was usable")
+
+
+def save_demo(path: Path | str, demo: Demo) -> None:
+    """Write ``demo`` as JSON (atomically): small, diffable, committable."""
+    doc = {"format": DEMO_FORMAT, "id": demo.id, "hand": demo.hand, "object": demo.object,
+           "joints_rad": demo.joints.tolist(), "palm_pos_m": demo.palm_pos_m.tolist(),
+           "palm_quat_wxyz": demo.palm_quat_wxyz.tolist(),
+           "tip_contacts_m": {k: v.tolist() for k, v in demo.tip_contacts.items()},
+           "contact_points_obj_m": {k: v.tolist() for k, v in demo.contact_points_obj.items()},
+           "source": str(demo.source), "time_s": demo.time_s, "how": demo.how,
+           "duration_s": demo.duration_s, "fingers": list(demo.fingers)}
+    write_bytes_atomic(path, (json.dumps(doc, indent=1) + "\n").encode())
+
+
+def load_demo(path: Path | str) -> Demo:
+    """Read a demo written by :func:`save_demo`; errors name the file and the field."""
+    path = Path(path)
+    try:
+        doc = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise DemoError(f"{path}: not a readable demo file ({exc})") from None
+    if not isinstance(doc, dict) or doc.get("format") != DEMO_FORMAT:
+        raise DemoError(f"{path}: field 'format' must be {DEMO_FORMAT!r}")
+
+    def arr(key: str, n: int | None) -> np.ndarray:
+        a = np.asarray(doc.get(key, []), float)
+        if a.ndim != 1 or (n is not None and len(a) != n) or not np.isfinite(a).all():
+            raise DemoError(f"{path}: field {key!r} must be {n or 'a list of'} finite numbers")
+        return a
+
+    try:
+        return Demo(id=str(doc["id"]), hand=str(doc["hand"]), object=str(doc["object"]),
+                    joints=arr("joints_rad", None), palm_pos_m=arr("palm_pos_m", 3),
+                    palm_quat_wxyz=arr("palm_quat_wxyz", 4),
+                    tip_contacts={k: np.asarray(v, float)
+                                  for k, v in doc.get("tip_contacts_m", {}).items()},
+                    contact_points_obj={k: np.asarray(v, float).reshape(-1, 3)
+                                        for k, v in doc.get("contact_points_obj_m", {}).items()},
+                    source=Path(doc.get("source", path)), time_s=float(doc.get("time_s", 0.0)),
+                    how=str(doc.get("how", "file")), duration_s=float(doc.get("duration_s", 0)),
+                    fingers=tuple(doc.get("fingers", ())))
+    except KeyError as exc:
+        raise DemoError(f"{path}: missing field {exc}") from None
+
+
+def resolve_demo(spec: str, hand_name: str) -> Demo:
+    """A demo from what a user types: a demo file (``.json``), a session (``.mcap``: its
+    longest-held demo), or the name of a reference grasp of the hand (its fingertip contacts
+    found in MuJoCo)."""
+    path = Path(spec)
+    if path.suffix == ".json":
+        return load_demo(path)
+    if path.suffix == ".mcap":
+        return max(extract_demos(path), key=lambda d: d.duration_s)
+    from sim.hand import Hand
+    from sim.objects import load_object
+    from sim.reference_grasps import load_reference_grasps
+    from sim.validate import Validator
+
+    hand = Hand.load(hand_name)
+    refs = {r.name: r for r in load_reference_grasps(hand)}
+    if spec not in refs:
+        raise DemoError(f"demo {spec!r}: not a .json demo, an .mcap session or a reference grasp "
+                        f"of {hand_name} (known: {sorted(refs)})")
+    ref = refs[spec]
+    tips = Validator(hand, load_object(ref.object)).fingertip_contacts(ref.grasp)
+    contacts = {k: v for k, v in tips.items() if v is not None}
+    return Demo(id=f"grasp:{ref.name}", hand=hand.name, object=ref.object,
+                joints=ref.grasp.joints, palm_pos_m=ref.grasp.palm_pos,
+                palm_quat_wxyz=ref.grasp.palm_quat_wxyz, tip_contacts=contacts,
+                contact_points_obj={}, source=Path(spec), time_s=0.0, how="reference grasp",
+                fingers=tuple(sorted(contacts)))

@@ -1,0 +1,147 @@
+"""Session → demo → AutoWS → FSG → validation → dataset + report (augment.demo, augment.pipeline).
+
+The end-to-end check runs the committed scripted demonstration of the tomato soup can through
+the whole pipeline and checks the dataset against its own claims and the report against the
+dataset; the bad-input checks build small sessions with the real recorder.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from augment import dataset
+from augment.demo import DemoError, extract_demos, load_demo, save_demo
+from sim.errors import DexaugError
+from sim.paths import REPO_ROOT
+from teleop.recorder import SessionRecorder
+from tests.conftest import needs_menagerie, needs_ycb
+
+CAN_SESSION = REPO_ROOT / "recordings" / "demo_005_tomato_soup_can.mcap"
+RAW_SESSION = REPO_ROOT / "recordings" / "synth_005_tomato_soup_can.mcap"
+
+
+def _state_only_session(path: Path, meta: dict, contacts: bool) -> Path:
+    """A session with states (hand at rest, object still) and, when ``contacts``, one
+    forefinger-only contact per state: never a grasp."""
+    joints = [f"j{i}" for i in range(3)]
+    with SessionRecorder(path, metadata={"joint_names": joints, **meta}) as rec:
+        for k in range(50):
+            t = k * 10_000_000
+            rec.write_state(np.zeros(3), [0, 0, 0.2], [1, 0, 0, 0], [0, 0, 0], [1, 0, 0, 0],
+                            t_s=k * 0.01, log_time_ns=t)
+            rec.write_contacts([], t_s=k * 0.01, log_time_ns=t)
+    return path
+
+
+def test_session_without_object_or_contacts(tmp_path: Path) -> None:
+    fingers = {"hand": "shadow_right", "fingers": ["thumb", "forefinger"]}
+    with pytest.raises(DemoError, match="no object"):
+        extract_demos(_state_only_session(tmp_path / "a.mcap", fingers, False))
+    p = _state_only_session(tmp_path / "b.mcap", {**fingers, "object": "box"}, False)
+    with pytest.raises(DemoError, match="no fingertip ever touched"):
+        extract_demos(p)
+
+
+@needs_menagerie
+@needs_ycb
+def test_raw_session_and_damaged_file(tmp_path: Path) -> None:
+    with pytest.raises(DemoError, match=r"raw input only.*rerecord"):
+        extract_demos(RAW_SESSION)
+    junk = tmp_path / "junk.mcap"
+    junk.write_bytes(b"not an mcap file at all" * 10)
+    with pytest.raises(DemoError, match=r"junk\.mcap"):
+        extract_demos(junk)
+    # a recording cut in half (recorder killed): what is readable still gives the grasp or a
+    # clear reason, never a crash
+    cut = tmp_path / "cut.mcap"
+    data = CAN_SESSION.read_bytes()
+    cut.write_bytes(data[: len(data) // 2])
+    try:
+        demos = extract_demos(cut)
+        assert all(np.isfinite(d.joints).all() for d in demos)
+    except DemoError as exc:
+        assert "cut.mcap" in str(exc)
+
+
+@needs_menagerie
+@needs_ycb
+def test_demo_of_the_committed_session_and_file_round_trip(tmp_path: Path) -> None:
+    demos = extract_demos(CAN_SESSION)
+    assert len(demos) == 1
+    d = demos[0]
+    assert d.object == "005_tomato_soup_can" and d.hand == "shadow_right"
+    assert "thumb" in d.fingers and len(d.fingers) >= 2 and d.duration_s >= 0.3
+    # contacts lie on the can: within a few mm of its surface in the object frame
+    from sim.objects import load_object
+    from teleop.synth import surface_distance_m
+
+    mesh = load_object(d.object).surface_mesh()
+    for pts in d.contact_points_obj.values():
+        assert np.abs(surface_distance_m(mesh, pts)).max() < 0.004
+    save_demo(tmp_path / "d.json", d)
+    back = load_demo(tmp_path / "d.json")
+    np.testing.assert_allclose(back.joints, d.joints)
+    np.testing.assert_allclose(back.palm_quat_wxyz, d.palm_quat_wxyz)
+    assert back.tip_contacts.keys() == d.tip_contacts.keys()
+    (tmp_path / "bad.json").write_text(json.dumps({"format": "dexaug-demo-1", "id": "x"}))
+    with pytest.raises(DemoError, match=r"bad\.json.*field"):
+        load_demo(tmp_path / "bad.json")
+
+
+@needs_menagerie
+@needs_ycb
+def test_hand_not_installed(tmp_path: Path) -> None:
+    from augment.pipeline import AugmentOptions, augment_demo
+
+    d = extract_demos(CAN_SESSION)[0]
+    ghost = type(d)(**{**d.__dict__, "hand": "no_such_hand"})
+    with pytest.raises(DexaugError, match="no_such_hand"):
+        augment_demo(ghost, tmp_path, AugmentOptions(n=5, workers=1, gallery=0))
+    assert not any(tmp_path.iterdir())   # nothing half-written
+
+
+@needs_menagerie
+@needs_ycb
+def test_session_to_validated_dataset_and_report(shadow, tmp_path: Path) -> None:
+    """A recorded session in, a dataset out: ≥ 20 grasps that pass lift-drop, joint angles
+    within the demo-centred ranges, the report stating the dataset's numbers; re-running skips
+    the finished demo."""
+    from augment.pipeline import AugmentOptions, augment_session
+    from augment.workspace import load_autows_params
+
+    opts = AugmentOptions(n=80, workers=2, time_budget_s=90.0, gallery=2)
+    (s,) = augment_session(CAN_SESSION, tmp_path, opts)
+    assert s.passed >= 20, s
+    tables = dataset.load(s.dataset)
+    t = tables["005_tomato_soup_can"]
+    assert len(t) == s.passed and t["passed"].all()
+    assert t.rejected is not None and len(t.rejected) == s.generated - s.passed
+    assert all(r != "" for r in t.rejected["failure"])
+    demo = extract_demos(CAN_SESSION)[0]
+    ws = load_autows_params()
+    span = math.radians(ws.demo_steps * ws.demo_step_deg) + 1e-6
+    q = t["hand_pose"]
+    for k, finger in enumerate(t.finger_names):
+        idx = list(shadow.finger_qadr[finger])
+        used = t["fingers_used"][:, k]
+        assert (np.abs(q[used][:, idx] - demo.joints[idx]) <= span).all(), finger
+        assert (q[~used][:, idx] == 0).all(), finger
+    html = Path(s.report).read_text()
+    shown = {m[0]: m[1] for m in re.findall(r"<td id='m-([a-z0-9-]+)'>([^<]*)</td>", html)}
+    assert int(shown["grasps-passed-validation"]) == len(t)
+    assert int(shown["grasps-generated-fsg"]) == len(t) + len(t.rejected)
+    assert (Path(s.report).parent / "palm_cloud.png").stat().st_size > 1000
+    again = augment_session(CAN_SESSION, tmp_path, opts)
+    assert again[0].skipped and again[0].passed == s.passed
+    # an interrupted run (no summary yet) is redone, never trusted
+    (Path(s.dataset).parent / "summary.json").unlink()
+    shutil.copy(s.dataset, tmp_path / "keep.h5")
+    redo = augment_session(CAN_SESSION, tmp_path, AugmentOptions(n=10, workers=2, gallery=0))
+    assert not redo[0].skipped
