@@ -193,7 +193,7 @@ class StreamIngest:
                 logger.info("streamer app disconnected (%s)", peer)
 
         if udp_port is not None:
-            srv = socketserver.ThreadingUDPServer((host, udp_port), Udp)
+            srv = socketserver.UDPServer((host, udp_port), Udp)  # one thread: in order
             self.udp_port = srv.server_address[1]
             self._servers.append(srv)
         if tcp_port is not None:

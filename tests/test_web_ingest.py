@@ -6,6 +6,7 @@ from __future__ import annotations
 import asyncio
 import json
 import ssl
+import threading
 import time
 
 import numpy as np
@@ -123,7 +124,12 @@ def test_websocket_protocol_frames_control_refusal(tmp_path, caplog):
         return out
 
     try:
-        out = asyncio.run(session())
+        # own thread and loop: a Playwright sync fixture may hold this thread's event loop
+        box: dict = {}
+        th = threading.Thread(target=lambda: box.update(out=asyncio.run(session())))
+        th.start()
+        th.join(30)
+        out = box["out"]
         t_end = time.perf_counter() + 5
         while len(got) < 20 and time.perf_counter() < t_end:
             time.sleep(0.02)

@@ -145,7 +145,7 @@ function onText(msg) {
       break;
     case 'status':
       stats.status = msg;
-      if (!msg.bridge && link.state === 'connected') say(`The bridge does not answer: ${msg.error}`, 'warn');
+      if (!msg.bridge && link.state === 'connected' && !blocking) say(`The bridge does not answer: ${msg.error}`, 'warn');
       break;
     case 'event':
       if (msg.event && msg.event.type === 'grasp_mark') {
