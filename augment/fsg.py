@@ -68,15 +68,18 @@ budget. Unused finger joints (and all non-finger joints, e.g. the wrist) are 0.
 
 Parallelism: ``workers`` processes, worker k seeded with ``seed + k`` and asked for its share of
 ``n``; results are merged in worker order and de-duplicated again, so the output is deterministic
-for a seed and worker count unless the time budget cuts a run short.
+for a seed and worker count unless the time budget cuts a run short. The worker processes
+are kept between calls (:func:`_pool`).
 """
 
 from __future__ import annotations
 
+import atexit
 import dataclasses
 import logging
 import math
 import time
+from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from multiprocessing import get_context
@@ -601,12 +604,30 @@ def _worker_run(setup: _Setup, seed: int, worker: int, n: int, budget_s: float,
     return sampler.accepted, sampler.stats, stopped, sets
 
 
+_POOLS: dict[int, ProcessPoolExecutor] = {}
+
+
+def _pool(workers: int) -> ProcessPoolExecutor:
+    """A process pool kept for the life of this process: starting workers (imports, NumPy,
+    SciPy) costs about as much as a whole demo-seeded run, so it is paid once, not per call.
+    Workers come from a fork server (clean, thread-free, modules preloaded): safe to start
+    from threaded programs (the dashboard, the bridge), unlike a plain fork."""
+    pool = _POOLS.get(workers)
+    if pool is None:
+        ctx = get_context("forkserver")
+        ctx.set_forkserver_preload(["augment.fsg"])
+        pool = _POOLS[workers] = ProcessPoolExecutor(workers, mp_context=ctx)
+        atexit.register(pool.shutdown, cancel_futures=True)
+    return pool
+
+
 # ---------------------------------------------------------------------------------------------
 # public entry point
 
 
 def generate(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: WorkspaceCloud, *,
-             n: int = 10, fingers: int | None = None, table: bool = False,
+             n: int = 10, fingers: int | None = None,
+             finger_names: Sequence[str] | None = None, table: bool = False,
              use_affordance: bool = True, finger_iteration: bool = True,
              link_penetration: bool = False, seed: int = 0, time_budget_s: float = 60.0,
              workers: int = 1, params: FsgParams | None = None) -> FsgResult:
@@ -618,6 +639,9 @@ def generate(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: WorkspaceClo
         workspace: AutoWS clouds of this hand.
         n: grasps wanted.
         fingers: use at most this many fingers (the most important ones); default all.
+        finger_names: use only these fingers (kept in priority order): with a demonstration,
+            the fingers that touched in it — the paper's augmented grasps "involve only those
+            fingers", and the others' demo-centred clouds rarely reach the object.
         table: reject palms (and fingertips' faces) below the table plane.
         use_affordance: ``True`` samples ``cloud_part`` (affordance annotation, else the
             curvature filter; the paper's "+Aff"); ``False`` samples the whole ``cloud_full``
@@ -651,6 +675,12 @@ def generate(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: WorkspaceClo
     part_idx = (np.flatnonzero(cloud.part_mask) if use_affordance
                 else np.arange(len(cloud.points)))
     active = workspace.finger_names
+    if finger_names is not None:
+        unknown = sorted(set(finger_names) - set(active))
+        if unknown:
+            raise FsgError(f"finger_names {unknown} are not fingers of the workspace "
+                           f"{list(active)}")
+        active = tuple(f for f in active if f in set(finger_names))
     if fingers is not None:
         if fingers < 1:
             raise FsgError(f"fingers must be >= 1, got {fingers}")
@@ -669,11 +699,10 @@ def generate(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: WorkspaceClo
         outs = [_worker_run(setup, seed, 0, n, budget)]
     else:
         share = math.ceil(n / workers)
-        ctx = get_context("spawn")
-        with ProcessPoolExecutor(workers, mp_context=ctx) as pool:
-            futs = [pool.submit(_worker_run, setup, seed + k, k, share, budget)
-                    for k in range(workers)]
-            outs = [f.result() for f in futs]
+        pool = _pool(workers)
+        futs = [pool.submit(_worker_run, setup, seed + k, k, share, budget)
+                for k in range(workers)]
+        outs = [f.result() for f in futs]
     merged = _Sampler.__new__(_Sampler)
     merged.p = setup.params
     merged._acc_pos, merged._acc_quat, merged._acc_q = (np.zeros((0, 3)), np.zeros((0, 4)),

@@ -38,7 +38,8 @@ from sim.hand import Hand
 from sim.io import write_bytes_atomic
 from sim.objects import load_object
 
-__all__ = ["AugmentOptions", "DemoSummary", "augment_demo", "augment_session", "demo_dir"]
+__all__ = ["AugmentOptions", "DemoSummary", "augment_demo", "augment_session", "demo_dir",
+           "finished"]
 
 log = logging.getLogger(__name__)
 
@@ -104,6 +105,12 @@ def demo_dir(out_root: Path | str, demo: Demo) -> Path:
     return Path(out_root) / re.sub(r"[^A-Za-z0-9_.@-]+", "_", demo.id)
 
 
+def finished(folder: Path | str, opts: AugmentOptions) -> DemoSummary | None:
+    """The summary of ``folder`` when it is finished under ``opts`` (what ``augment_demo``
+    would skip), else None: lets a caller (the dashboard) show results without re-running."""
+    return _finished(Path(folder), opts)
+
+
 def _finished(folder: Path, opts: AugmentOptions) -> DemoSummary | None:
     path = folder / "summary.json"
     if not path.is_file():
@@ -147,7 +154,7 @@ def augment_demo(demo: Demo, out_root: Path | str, opts: AugmentOptions | None =
 
     t0 = time.perf_counter()
     tick("fsg", 0, opts.n)
-    res = generate(hand, cloud, ws, n=opts.n, table=opts.table,
+    res = generate(hand, cloud, ws, n=opts.n, table=opts.table, finger_names=demo_fingers(demo),
                    link_penetration=opts.link_penetration, seed=opts.seed,
                    time_budget_s=opts.time_budget_s, workers=opts.workers)
     tick("fsg", len(res.grasps), opts.n)
@@ -197,6 +204,12 @@ def augment_demo(demo: Demo, out_root: Path | str, opts: AugmentOptions | None =
     log.info("%s: %d of %d generated grasps passed %s (%s)", demo.id, summary.passed,
              summary.generated, opts.validate, folder)
     return summary
+
+
+def demo_fingers(demo: Demo) -> tuple[str, ...] | None:
+    """The fingers augmented grasps use: those that touched in the demo (paper §5.2), or all
+    when fewer than two did (a lone mark on a one-finger touch)."""
+    return demo.fingers if len(demo.fingers) >= 2 else None
 
 
 def _mean(x: np.ndarray) -> float:

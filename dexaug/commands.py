@@ -152,21 +152,85 @@ def validate(args: argparse.Namespace, console: Console) -> int:
 
 
 def _demo_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--hand", default="shadow_right", help="hand config name")
+    from sim.paths import REPO_ROOT
+
+    p.add_argument("--session", type=Path,
+                   default=REPO_ROOT / "recordings" / "demo_005_tomato_soup_can.mcap",
+                   help="the demonstration session to augment (default: the committed Shadow "
+                   "Hand grasp of the tomato soup can)")
+    p.add_argument("--out", type=Path, default=Path("datasets/demo"), help="output folder")
+    p.add_argument("--n", type=int, default=100, help="grasps to generate")
 
 
 @command("demo", _demo_args)
 def demo(args: argparse.Namespace, console: Console) -> int:
     """Run the main job on its embedded default (what `make demo` runs).
 
-    At this stage of the project: load the hand and the YCB objects of its reference grasps,
-    validate every reference grasp with both protocols, and print the results table.
+    1. The teleop path: the synthetic operator's session (recordings/synth_*.mcap, raw hand
+       tracking) replays through the real bridge (zenoh, mink retargeting, MuJoCo) into a new
+       recording, as a headset's would.
+    2. The augmentation: the demonstration session (--session) → grasp demo → AutoWS → FSG →
+       lift-drop validation of every grasp → HDF5 dataset and HTML report, whose paths are
+       printed. Without the YCB objects, a scripted demonstration on a procedural cylinder is
+       recorded first and augmented instead.
     """
-    from sim.paths import ycb_root
+    import tempfile
 
+    from augment.pipeline import AugmentOptions, augment_session
+    from dexaug.commands_augment import progress_bars, stage_ticker
+    from sim.paths import REPO_ROOT, ycb_root
+    from teleop.rerecord import rerecord
+    from teleop.session import open_session
+
+    args.out.mkdir(parents=True, exist_ok=True)
+    session = args.session
+    raw = sorted((REPO_ROOT / "recordings").glob("synth_*.mcap"))
     if ycb_root(required=False) is None:
-        console.print("[yellow]no YCB root found; set DEXAUG_YCB_ROOT")
-    return run_reference_validation(args.hand, console)
+        console.print("[yellow]no YCB objects (DEXAUG_YCB_ROOT): using a procedural cylinder")
+        session = _procedural_demo_session(args.out / "demo_cylinder.mcap")
+        raw = []
+    if raw:
+        with tempfile.TemporaryDirectory() as tmp:
+            start = time.perf_counter()
+            rec = open_session(rerecord(raw[0], Path(tmp) / "replayed.mcap"))
+            console.print(f"1. replayed {raw[0].name} through the bridge: {rec.counts['/hands']} "
+                          f"frames → {rec.counts['/state']} states, "
+                          f"{rec.counts['/contacts']} contact records in "
+                          f"{time.perf_counter() - start:.1f} s")
+    console.print(f"2. augmenting {session}")
+    opts = AugmentOptions(n=args.n, time_budget_s=90.0, gallery=4)
+    start = time.perf_counter()
+    with progress_bars(console) as bar:
+        summaries = augment_session(session, args.out, opts, progress=stage_ticker(bar),
+                                    force=True)
+    for s in summaries:
+        console.print(f"demo {s.demo_id}: {s.generated} grasps generated, {s.passed} passed "
+                      f"lift-drop in {time.perf_counter() - start:.1f} s")
+        console.print(f"dataset: {s.dataset}")
+        console.print(f"report:  {s.report}")
+    return 0
+
+
+def _procedural_demo_session(out: Path) -> Path:
+    """A scripted demonstration on the procedural cylinder: the first FSG grasp (manual
+    workspace, table mode) that passes lift-drop, performed and recorded."""
+    from augment.fsg import generate
+    from augment.object_cloud import object_cloud
+    from augment.workspace import build_workspace
+    from sim.batch import validate_many
+    from sim.errors import DexaugError
+    from sim.hand import Hand
+    from sim.objects import load_object
+    from teleop.scripted import record_scripted_demo
+
+    hand = Hand.load("shadow_right")
+    res = generate(hand, object_cloud(load_object("cylinder")), build_workspace(hand), n=30,
+                   table=True, link_penetration=True, workers=2, time_budget_s=60.0)
+    results = validate_many(hand.name, "cylinder", [g.grasp for g in res.grasps])
+    passing = [g for g, r in zip(res.grasps, results, strict=True) if r.passed]
+    if not passing:
+        raise DexaugError("no FSG grasp of the procedural cylinder passed lift-drop")
+    return record_scripted_demo(hand, "cylinder", passing[0].grasp, out, overwrite=True)
 
 
 def _workspace_args(p: argparse.ArgumentParser) -> None:

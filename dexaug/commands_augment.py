@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import logging
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from rich.console import Console
@@ -20,9 +21,21 @@ from dexaug.cli import command
 log = logging.getLogger(__name__)
 
 
-def _progress(console: Console) -> Progress:
+def progress_bars(console: Console) -> Progress:
     return Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                     TimeElapsedColumn(), console=console, transient=False)
+
+
+def stage_ticker(bar: Progress) -> Callable[[str, int, int], None]:
+    """A pipeline progress callback that keeps one bar per stage (workspace, fsg, …)."""
+    tasks: dict[str, int] = {}
+
+    def tick(stage: str, done: int, total: int) -> None:
+        if stage not in tasks:
+            tasks[stage] = bar.add_task(stage, total=total)
+        bar.update(tasks[stage], completed=done, total=total)
+
+    return tick
 
 
 def _generation_args(p: argparse.ArgumentParser) -> None:
@@ -57,7 +70,8 @@ def _generate_args(p: argparse.ArgumentParser) -> None:
 def generate_cmd(args: argparse.Namespace, console: Console) -> int:
     """Generate grasps of one object with FSG (paper §4) and write them to an HDF5 dataset.
 
-    The workspace is the hand's manual one (paper Table 1), or centred on --demo. Every grasp
+    The workspace is the hand's manual one (paper Table 1), or centred on --demo (and then only
+    the fingers that touched in the demo are used, as in the paper's augmentation). Every grasp
     is validated in MuJoCo (--validate); passing grasps go to the main table, failing ones to
     the side table "rejected" with their reason. A shortfall (fewer grasps than --n within
     --budget) is reported, never a hang.
@@ -66,6 +80,7 @@ def generate_cmd(args: argparse.Namespace, console: Console) -> int:
     from augment.demo import resolve_demo
     from augment.fsg import generate
     from augment.object_cloud import object_cloud
+    from augment.pipeline import demo_fingers
     from augment.workspace import build_workspace
     from sim.batch import default_workers, validate_many
     from sim.hand import Hand
@@ -79,9 +94,10 @@ def generate_cmd(args: argparse.Namespace, console: Console) -> int:
         console.print(f"[yellow]note: demo {demo.id} grasps {demo.object}, generating for "
                       f"{obj.name}")
     ws = build_workspace(hand, demo=demo.seed() if demo else None)
-    with _progress(console) as bar:
+    with progress_bars(console) as bar:
         task = bar.add_task(f"FSG {obj.name}", total=args.n)
         res = generate(hand, object_cloud(obj), ws, n=args.n, fingers=args.fingers,
+                       finger_names=demo_fingers(demo) if demo else None,
                        table=args.table, use_affordance=not args.no_aff,
                        finger_iteration=not args.no_finiter,
                        link_penetration=not args.no_linkpen, seed=args.seed,
@@ -156,17 +172,10 @@ def augment_cmd(args: argparse.Namespace, console: Console) -> int:
     opts = _augment_options(args)
     failed = 0
     rows = []
-    with _progress(console) as bar:
-        tasks: dict[str, int] = {}
-
-        def tick(stage: str, done: int, total: int) -> None:
-            if stage not in tasks:
-                tasks[stage] = bar.add_task(stage, total=total)
-            bar.update(tasks[stage], completed=done, total=total)
-
+    with progress_bars(console) as bar:
         def one(path: Path) -> None:
             nonlocal failed
-            tasks.clear()
+            tick = stage_ticker(bar)
             try:
                 if path.suffix == ".json":
                     summaries = [augment_demo(load_demo(path), args.out, opts, progress=tick,
@@ -250,4 +259,49 @@ def rerecord_cmd(args: argparse.Namespace, console: Console) -> int:
 
     out = rerecord(args.src, args.out, hand=args.hand, object_name=args.object)
     console.print(f"wrote {out}")
+    return 0
+
+
+def _bench_args(p: argparse.ArgumentParser) -> None:
+    from dexaug.bench_paper import OBJECTS, VARIANTS
+
+    p.add_argument("suite", choices=("paper",), help="paper: the reference paper's Tables 2, 3")
+    p.add_argument("--n", type=int, default=20, help="grasps requested per row")
+    p.add_argument("--budget", type=float, default=30.0, metavar="SECONDS",
+                   help="FSG time budget per row")
+    p.add_argument("--objects", nargs="*", default=list(OBJECTS))
+    p.add_argument("--methods", nargs="*", default=list(VARIANTS), choices=list(VARIANTS))
+    p.add_argument("--workspaces", nargs="*", default=["manual", "demo"],
+                   choices=["manual", "demo"])
+    p.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
+    p.add_argument("--no-six-dir", action="store_true", help="skip the six-dir validation")
+    p.add_argument("--out", type=Path, help="also write the Markdown table to this file")
+
+
+@command("bench", _bench_args)
+def bench_cmd(args: argparse.Namespace, console: Console) -> int:
+    """Benchmarks. `dexaug bench paper` measures the rows of the paper's Tables 2 and 3.
+
+    For 004, 005, 024, 043 and 062 with the Shadow Hand, without and with the committed
+    demonstrations (recordings/demos/), for FSG, FSG+Aff, FSG+Aff-FinIter and FSG+Aff+LinkPen:
+    time per result, GWS ε / volume and valid-ε % from simulated contacts, plus lift-drop and
+    six-dir pass rates, penetration and diversity; prints a Markdown table with the paper's
+    figures beside ours.
+    """
+    from dexaug.bench_paper import markdown, measure, paper_figures
+    from sim.batch import default_workers
+    from sim.io import write_bytes_atomic
+
+    rows_total = len(args.objects) * len(args.methods) * len(args.workspaces)
+    with progress_bars(console) as bar:
+        task = bar.add_task("rows", total=rows_total)
+        rows = measure(args.objects, args.methods, args.workspaces, n=args.n,
+                       budget_s=args.budget, workers=args.workers or default_workers(),
+                       six_dir=not args.no_six_dir,
+                       on_row=lambda r: bar.advance(task))
+    table = markdown(rows, paper_figures())
+    console.print(table, markup=False, highlight=False, soft_wrap=True)
+    if args.out:
+        write_bytes_atomic(args.out, (table + "\n").encode())
+        console.print(f"wrote {args.out}")
     return 0

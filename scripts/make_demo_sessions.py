@@ -10,7 +10,8 @@ How a demonstration is made, with dexaug's own tools only (no human, no shared r
    gravity on) and recorded in the bridge's session format.
 3. **Kept when it is a demo.** ``augment.demo.extract_demos`` must find the grasp in the
    recording (at least two fingertips, the thumb among them, in stable contact); of the
-   candidates, the one held longest is kept as ``recordings/demo_<object>.mcap``, and its
+   candidates, the one with the most fingers in contact (then held longest) is kept as
+   ``recordings/demo_<object>.mcap``, and its
    extracted demo as ``recordings/demos/<object>.json``.
 
 The synthetic operator (``teleop.synth``) through the bridge was tried first and did not yield
@@ -63,7 +64,7 @@ def main() -> None:
         results = validate_many(hand.name, obj, [g.grasp for g in res.grasps])
         passing = [i for i, r in enumerate(results) if r.passed][:args.tries]
         log.info("%s: %d proposed, %d pass lift-drop", obj, len(res.grasps), len(passing))
-        best: tuple[float, Path, Demo] | None = None
+        best: tuple[tuple[int, float], Path, Demo] | None = None
         with tempfile.TemporaryDirectory() as tmp:
             for i in passing:
                 path = record_scripted_demo(hand, obj, res.grasps[i].grasp,
@@ -73,8 +74,9 @@ def main() -> None:
                 except DemoError as exc:
                     log.info("%s candidate %d: %s", obj, i, exc)
                     continue
-                if best is None or demo.duration_s > best[0]:
-                    best = (demo.duration_s, path, demo)
+                score = (len(demo.fingers), demo.duration_s)
+                if best is None or score > best[0]:
+                    best = (score, path, demo)
             if best is None:
                 log.warning("%s: no candidate became a demo", obj)
                 continue
