@@ -393,6 +393,11 @@ def _bridge_args(p: argparse.ArgumentParser) -> None:
                    help="folder for the self-signed certificate (default $DEXAUG_CACHE_DIR/web-cert)")
     p.add_argument("--http", action="store_true",
                    help="plain HTTP (only for localhost, e.g. through `adb reverse`)")
+    p.add_argument("--auto-augment", action="store_true",
+                   help="augment each recording as soon as it is stopped (`dexaug augment` in a "
+                   "background process, so the bridge keeps running)")
+    p.add_argument("--augment-out", type=Path, default=Path("datasets"),
+                   help="--auto-augment: output folder (default ./datasets)")
 
 
 @command("bridge", _bridge_args)
@@ -421,14 +426,33 @@ def bridge(args: argparse.Namespace, console: Console) -> int:
         lan = [a for a in local_addresses() if a != "127.0.0.1"]
         console.print(f"headset page: {url}" + "".join(f"  or  {scheme}://{a}:{ingest.port}/"
                                                         for a in lan), soft_wrap=True)
+    hook = _auto_augment(args.augment_out, console) if args.auto_augment else None
     try:
         return bridge_main(args.hand, args.object, args.rig, listen_port=args.listen,
                            connect_ports=tuple(args.connect) + extra_ports,
                            duration_s=args.duration, record=args.record,
-                           view=False if args.no_view else None)
+                           view=False if args.no_view else None, on_recording_closed=hook)
     finally:
         if ingest is not None:
             ingest.close()
+
+
+def _auto_augment(out: Path, console: Console):
+    """A recording-closed hook that starts ``dexaug augment PATH --out OUT`` in its own process
+    (its log goes to ``OUT/<session>.augment.log``), so augmentation never stalls the bridge."""
+    import subprocess
+    import sys
+
+    def start(path: Path) -> None:
+        out.mkdir(parents=True, exist_ok=True)
+        log_path = out / f"{path.stem}.augment.log"
+        with open(log_path, "ab") as log_file:
+            subprocess.Popen([sys.executable, "-m", "dexaug", "augment", str(path), "--out",
+                              str(out)], stdout=log_file, stderr=subprocess.STDOUT,
+                             stdin=subprocess.DEVNULL)
+        console.print(f"augmenting {path} in the background (log: {log_path})")
+
+    return start
 
 
 def _replay_args(p: argparse.ArgumentParser) -> None:

@@ -79,6 +79,7 @@ class CommonParams:
     min_grip_force_n: float
     close_time_s: float
     settle_time_s: float
+    pin_while_closing: bool
     contact: ContactParams
     gws_mu: float
 
@@ -120,7 +121,8 @@ class ValidateConfig:
         c = root.section("common")
         c.reject_unknown({"max_penetration_m", "contact_search_m", "pregrasp_backoff_m",
                           "squeeze_depth_m", "grip_safety", "min_grip_force_n", "close_time_s",
-                          "settle_time_s", "friction", "solref", "gws_mu"})
+                          "settle_time_s", "pin_while_closing", "friction", "solref",
+                          "gws_mu"})
         pos = {"min": 0.0}
         friction = tuple(c.floats("friction", 3))
         if friction[0] <= 0.0:  # the grip force is weight / friction
@@ -134,6 +136,7 @@ class ValidateConfig:
             min_grip_force_n=c.float("min_grip_force_n", **pos),
             close_time_s=c.float("close_time_s", min=1e-3),
             settle_time_s=c.float("settle_time_s", **pos),
+            pin_while_closing=c.bool("pin_while_closing"),
             contact=ContactParams(friction=friction, solref=tuple(c.floats("solref", 2))),
             gws_mu=c.float("gws_mu", min=0.0))
         ld = root.section("lift_drop")
@@ -359,28 +362,41 @@ class Validator:
         return pose_mul(inv_p, inv_q, obj_pos, obj_quat)
 
     def _run(self, scene: Scene, seconds: float, ctrl_from: np.ndarray | None = None,
-             ctrl_to: np.ndarray | None = None) -> None:
-        """Step ``seconds`` of simulation, ramping hand controls linearly when given."""
+             ctrl_to: np.ndarray | None = None, *,
+             pin: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+        """Step ``seconds`` of simulation, ramping hand controls linearly when given; with
+        ``pin`` (position, wxyz) the object is held at that pose after every step."""
         m, d = scene.model, scene.data
         steps = max(round(seconds / m.opt.timestep), 0)
-        if ctrl_from is None:
+        if ctrl_from is None and pin is None:
             if steps:
                 mujoco.mj_step(m, d, nstep=steps)
             return
         for k in range(steps):
-            alpha = (k + 1) / steps
-            d.ctrl[scene.hand_act] = (1 - alpha) * ctrl_from + alpha * ctrl_to
+            if ctrl_from is not None and ctrl_to is not None:
+                alpha = (k + 1) / steps
+                d.ctrl[scene.hand_act] = (1 - alpha) * ctrl_from + alpha * ctrl_to
             mujoco.mj_step(m, d)
+            if pin is not None:
+                scene.set_object_pose(*pin)
 
     def _close(self, scene: Scene, targets: GraspTargets) -> None:
-        """From the pregrasp, close the fingers onto the squeeze target with gravity off."""
+        """From the pregrasp, close the fingers onto the squeeze target with gravity off.
+
+        With ``pin_while_closing`` the object is held still while the fingers close, as the
+        table or the other hand holds a real object while a grasp is acquired: fingers reach
+        the object at different times, and the first one to arrive would otherwise push a free,
+        weightless object out of the hand before the others touch — a failure of the closing
+        sequence, not of the grasp. It is released for the settle phase, where an unbalanced
+        squeeze still moves it before the lift measures its pose in the palm."""
         scene.set_hand_joints(targets.pregrasp)
         scene.set_hand_ctrl(targets.pregrasp)
         mujoco.mj_forward(scene.model, scene.data)
         common = self.config.common
         ctrl_pre = self.hand.ctrl_for(targets.pregrasp)
         ctrl_sq = self.hand.ctrl_for(targets.squeeze)
-        self._run(scene, common.close_time_s, ctrl_pre, ctrl_sq)
+        pin = scene.object_pose() if common.pin_while_closing else None
+        self._run(scene, common.close_time_s, ctrl_pre, ctrl_sq, pin=pin)
         self._run(scene, common.settle_time_s)
 
     def _measure_contacts(self, scene: Scene, result: ValidationResult) -> None:

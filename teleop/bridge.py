@@ -43,6 +43,7 @@ import struct
 import threading
 import time
 from collections import Counter, deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -161,8 +162,10 @@ class Bridge:
                  config: BridgeConfig | None = None, *, session: zenoh.Session | None = None,
                  listen_port: int | None = None, connect_ports: tuple[int, ...] = (),
                  retarget_config_path: Path | str | None = None,
-                 calibration_frames: list[HandFrame] | None = None) -> None:
+                 calibration_frames: list[HandFrame] | None = None,
+                 on_recording_closed: Callable[[Path], None] | None = None) -> None:
         self.config = config or load_bridge_config()
+        self._on_recording_closed = on_recording_closed
         self.keys = zkeys.RigKeys(rig)
         self.hand = Hand.load(hand_name)
         self.retargeter = Retargeter(self.hand, load_retarget_config(retarget_config_path))
@@ -362,6 +365,11 @@ class Bridge:
         self._recorder = None
         rec.close(reason=str(args.get("reason", "stop_recording")))
         self._recording_path = None
+        if self._on_recording_closed is not None and path is not None:
+            try:
+                self._on_recording_closed(path)
+            except Exception:   # a hook must never take the bridge down
+                logger.exception("recording-closed hook failed for %s", path)
         return {"path": str(path), "written": dict(rec.stats.written)}
 
     def _cmd_choose_object(self, args: dict[str, Any]) -> dict[str, Any]:
@@ -649,14 +657,16 @@ class Bridge:
 def bridge_main(hand: str, obj: str | None = None, rig: str = "local", *,
                 config_path: Path | str | None = None, listen_port: int | None = 7447,
                 connect_ports: tuple[int, ...] = (), duration_s: float | None = None,
-                record: Path | str | None = None, view: bool | None = None) -> int:
+                record: Path | str | None = None, view: bool | None = None,
+                on_recording_closed: Callable[[Path], None] | None = None) -> int:
     """``dexaug bridge``: run a bridge until Ctrl-C (or ``duration_s``); ``record`` starts a
-    recording at that path right away. Returns a process exit code."""
+    recording at that path right away; ``on_recording_closed(path)`` runs after each recording
+    is closed (e.g. to augment it). Returns a process exit code."""
     cfg = load_bridge_config(config_path)
     if view is not None:
         cfg.view_enabled = view
-    with Bridge(hand, obj, rig, cfg, listen_port=listen_port,
-                connect_ports=tuple(connect_ports)) as bridge:
+    with Bridge(hand, obj, rig, cfg, listen_port=listen_port, connect_ports=tuple(connect_ports),
+                on_recording_closed=on_recording_closed) as bridge:
         if record is not None:
             bridge.control("start_recording", {"path": str(record)})
         logger.info("bridge %s: hands on %s, state on %s, control on %s", rig,

@@ -259,3 +259,25 @@ def test_control_object_commands_and_errors(frames):
         sub.undeclare()
     finally:
         rig.close()
+
+
+def test_recording_closed_hook(tmp_path) -> None:
+    """--auto-augment's hook: called once with the finished file when a recording stops, and a
+    failing hook never takes the bridge down."""
+    from teleop.bridge import Bridge
+    from teleop.session import open_session
+
+    closed = []
+
+    def hook(path):
+        closed.append(path)
+        raise RuntimeError("augmenter exploded")
+
+    port = keys.free_tcp_port()
+    with Bridge("shadow_right", None, "hook", _config(view_enabled=False), listen_port=port,
+                on_recording_closed=hook) as bridge:
+        path = tmp_path / "s.mcap"
+        assert bridge.control("start_recording", {"path": str(path)})["ok"]
+        assert bridge.control("stop_recording")["ok"]
+        assert closed == [path] and not open_session(path).truncated
+        assert bridge.status()["ok"]

@@ -145,3 +145,39 @@ def test_session_to_validated_dataset_and_report(shadow, tmp_path: Path) -> None
     shutil.copy(s.dataset, tmp_path / "keep.h5")
     redo = augment_session(CAN_SESSION, tmp_path, AugmentOptions(n=10, workers=2, gallery=0))
     assert not redo[0].skipped
+
+
+@needs_menagerie
+@needs_ycb
+def test_watch_mode_augments_finished_sessions_only(tmp_path: Path) -> None:
+    """`dexaug augment --watch DIR`: a session still being written (it reads as truncated) is
+    left alone; once complete it is augmented, and its summary appears."""
+    import os
+    import subprocess
+    import sys
+    import time
+
+    watch, out = tmp_path / "incoming", tmp_path / "out"
+    watch.mkdir()
+    src = (REPO_ROOT / "recordings" / "demo_062_dice.mcap").read_bytes()
+    target = watch / "dice.mcap"
+    target.write_bytes(src[: len(src) // 2])          # a recorder mid-session
+    env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
+    proc = subprocess.Popen([sys.executable, "-m", "dexaug", "augment", "--watch", str(watch),
+                             "--poll", "0.5", "--n", "8", "--gallery", "0", "--workers", "2",
+                             "--out", str(out)], env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT)
+    try:
+        time.sleep(3.0)
+        assert not list(out.glob("*/summary.json"))
+        target.write_bytes(src)                       # the recorder closed it
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and not list(out.glob("*/summary.json")):
+            assert proc.poll() is None, proc.stdout.read().decode()
+            time.sleep(0.5)
+        (summary,) = out.glob("*/summary.json")
+        doc = json.loads(summary.read_text())
+        assert doc["object"] == "062_dice" and doc["generated"] > 0
+    finally:
+        proc.terminate()
+        proc.wait(10)
