@@ -18,7 +18,8 @@ def test_help_lists_every_subcommand(capsys) -> None:
     with pytest.raises(SystemExit):
         build_parser().parse_args(["--help"])
     out = capsys.readouterr().out
-    for name in ("assets", "validate", "workspace", "retarget", "synth", "demo"):
+    for name in ("assets", "validate", "workspace", "retarget", "synth", "demo", "generate",
+                 "augment", "bench", "rerecord"):
         assert name in out
 
 
@@ -92,3 +93,29 @@ def test_validate_render_writes_png(tmp_path: Path) -> None:
     image = cv2.imread(str(tmp_path / "box_edge_wrap.png"))
     assert image is not None and image.shape == (480, 640, 3)
     assert image.std() > 10  # not a blank frame
+
+
+@needs_menagerie
+@needs_ycb
+def test_generate_writes_and_appends_a_dataset(tmp_path: Path, capsys) -> None:
+    """`dexaug generate` with a demo: grasps validated and split into kept/rejected; a second
+    run appends; an unreachable --n ends at the time budget with the shortfall reported."""
+    from augment import dataset
+    from sim.paths import REPO_ROOT
+
+    out = tmp_path / "g.h5"
+    demo = REPO_ROOT / "recordings" / "demos" / "062_dice.json"
+    args = ["generate", "--object", "062_dice", "--demo", str(demo), "--workers", "1",
+            "--out", str(out)]
+    assert main([*args, "--n", "6"]) == 0
+    t = dataset.load(out)["062_dice"]
+    first = len(t) + len(t.rejected)
+    assert first == 6 and t["passed"].all()
+    assert set(t["demo_id"]) == {"demo_062_dice@0.38s"}
+    assert main([*args, "--n", "100000", "--budget", "2", "--validate", "none"]) == 0
+    text = capsys.readouterr().out
+    assert "shortfall" in text and "time budget" in text
+    t2 = dataset.load(out)["062_dice"]
+    assert len(t2) > len(t)   # appended, unvalidated grasps land in the main table
+    code = main(["generate", "--object", "062_dice", "--demo", "no_such_grasp", "--n", "1"])
+    assert code == 2
