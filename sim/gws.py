@@ -35,6 +35,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
+from sim.transforms import cross
+
 NO_FORCE_CLOSURE = -1.0
 """ε reported when the origin is not strictly inside the GWS (GraspIt convention)."""
 
@@ -125,14 +127,6 @@ def _check_scale(torque_scale_m: float) -> float:
 # ------------------------------------------------------------------------------ wrenches
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``a × b`` over the last axis (broadcasting); a few times faster than ``np.cross`` on the
-    small arrays used here, which matters at thousands of calls per grasp search."""
-    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
-    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
-
-
 def tangent_basis(normals: np.ndarray, tangents: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Orthonormal tangent pair ``(t1, t2)``, each (N,3), with ``t1 × t2 = n`` for unit normals.
 
@@ -149,7 +143,7 @@ def tangent_basis(normals: np.ndarray, tangents: np.ndarray | None = None) -> tu
         k = np.argmin(np.abs(n), axis=1)
         helper = np.zeros_like(n)
         helper[np.arange(len(n)), k] = 1.0
-        t1 = _cross(n, helper)
+        t1 = cross(n, helper)
     else:
         t = _vectors("tangents", tangents, len(n))
         t1 = t - np.sum(t * n, axis=1, keepdims=True) * n
@@ -157,7 +151,7 @@ def tangent_basis(normals: np.ndarray, tangents: np.ndarray | None = None) -> tu
     if len(n) and norm.min() < 1e-9:
         raise ValueError(f"tangents: row {int(norm.argmin())} is parallel to its normal")
     t1 = t1 / norm[:, None]
-    t2 = _cross(n, t1)
+    t2 = cross(n, t1)
     return t1, t2
 
 
@@ -193,7 +187,7 @@ def contact_wrenches(points: np.ndarray, normals: np.ndarray, mu: float, n_edges
     edges = friction_cone_edges(_unit_normals(normals, len(p)), mu, n_edges, tangents)
     c = _check_centre(centre)
     scale = _check_scale(torque_scale_m)
-    torques = _cross((p - c)[:, None, :], edges) / scale
+    torques = cross((p - c)[:, None, :], edges) / scale
     return np.concatenate([edges, torques], axis=2).reshape(-1, WRENCH_DIM)
 
 
