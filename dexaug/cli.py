@@ -30,7 +30,7 @@ def command(name: str, setup: Callable[[argparse.ArgumentParser], None]) -> Call
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from dexaug import commands, commands_augment, commands_teleop  # noqa: F401  (registers them)
+    from dexaug import commands, commands_augment, commands_teleop, commands_ui  # noqa: F401  (registers them)
 
     parser = argparse.ArgumentParser(
         prog="dexaug", description="Teleoperation-to-dataset system for dexterous robot hands: "

@@ -1,0 +1,170 @@
+"""The dashboard's job queue: one augmentation at a time, on a worker thread of the server.
+
+Why a thread and not a child process per job: the pipeline already runs its heavy parts in
+process pools (FSG's fork-server pool, validation's spawn pool), and FSG keeps its pool alive for
+the life of the process because starting workers costs about as much as a demo-seeded run; a
+job in this process reuses that pool from one click to the next, where a child per job would pay
+it every time (and could not exit while the pool's workers lived). What stays on the thread
+(AutoWS clouds, the report's renders) is NumPy and MuJoCo code that releases the GIL for its
+heavy parts. The web handlers only read job state copied under a lock, so the event loop never
+waits on a job; a job's exception of any kind ends that job as "failed" with its message, never
+the server.
+
+Why one at a time: every job already uses all the workers it is given; two at once would only
+halve each other's speed and make the progress bars lie about the time left.
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import queue
+import threading
+import time
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from sim.errors import DexaugError
+
+__all__ = ["Job", "JobQueue", "JobTarget", "run_augmentation"]
+
+log = logging.getLogger(__name__)
+
+#: What a job runs: ``target(payload, progress) -> result`` (JSON-able);
+#: ``progress(stage, done, total)`` is the pipeline's callback.
+JobTarget = Callable[[Any, Callable[[str, int, int], None]], dict[str, Any]]
+
+#: Job states, in order; "done" and "failed" are final.
+STATES = ("queued", "running", "done", "failed")
+
+
+@dataclass
+class Job:
+    """One queued or finished job: what it is for (``key``, ``label``), where it is
+    (``state``, the pipeline ``stage`` and its ``done``/``total``), and how it ended
+    (``result`` or ``error``; ``detail`` holds a traceback for errors that are not dexaug's)."""
+
+    id: int
+    key: str
+    label: str
+    payload: Any = field(repr=False)
+    state: str = "queued"
+    stage: str = ""
+    done: int = 0
+    total: int = 0
+    result: dict[str, Any] | None = None
+    error: str | None = None
+    detail: str | None = None
+    queued_at: float = field(default_factory=time.time)
+    started_at: float | None = None
+    finished_at: float | None = None
+
+    @property
+    def active(self) -> bool:
+        return self.state in ("queued", "running")
+
+    def to_json(self) -> dict[str, Any]:
+        return {"id": self.id, "key": self.key, "label": self.label, "state": self.state,
+                "stage": self.stage, "done": self.done, "total": self.total,
+                "result": self.result, "error": self.error, "queued_at": self.queued_at,
+                "started_at": self.started_at, "finished_at": self.finished_at}
+
+
+class JobQueue:
+    """Jobs run one after another on a worker thread (module docstring).
+
+    ``target`` is run for every job (tests give a fake one). :meth:`submit` returns at once;
+    :meth:`snapshot` gives every job's state as JSON for the page.
+    """
+
+    def __init__(self, target: JobTarget) -> None:
+        self._target = target
+        self._lock = threading.Lock()
+        self._jobs: dict[int, Job] = {}
+        self._pending: queue.Queue[Job | None] = queue.Queue()
+        self._ids = itertools.count(1)
+        self._closing = threading.Event()
+        self._worker = threading.Thread(target=self._run, name="dexaug-jobs", daemon=True)
+        self._worker.start()
+
+    def submit(self, key: str, label: str, payload: Any) -> Job:
+        """Queue a job for ``key`` (a demo); while one for that key is queued or running, that
+        one is returned instead (a double click starts nothing twice)."""
+        with self._lock:
+            for job in self._jobs.values():
+                if job.key == key and job.active:
+                    return job
+            job = Job(next(self._ids), key, label, payload)
+            self._jobs[job.id] = job
+        log.info("job %d queued: %s", job.id, label)
+        self._pending.put(job)
+        return job
+
+    def snapshot(self) -> list[dict[str, Any]]:
+        """Every job (oldest first) as JSON-able dicts, copied under the lock."""
+        with self._lock:
+            return [j.to_json() for j in self._jobs.values()]
+
+    def close(self, timeout_s: float = 5.0) -> None:
+        """Stop taking jobs; queued ones are dropped. A running job cannot be interrupted (the
+        pipeline has no cancel): the worker is a daemon thread and is waited for only
+        ``timeout_s``, and an unfinished demo is redone next time (no summary is written)."""
+        self._closing.set()
+        self._pending.put(None)
+        self._worker.join(timeout_s)
+        if self._worker.is_alive():
+            log.warning("a job is still running; leaving it to end with the process")
+
+    # ---------------------------------------------------------------------------- internals
+
+    def _update(self, job: Job, **fields: Any) -> None:
+        with self._lock:
+            for k, v in fields.items():
+                setattr(job, k, v)
+
+    def _run(self) -> None:
+        while not self._closing.is_set():
+            job = self._pending.get()
+            if job is None:
+                break
+            self._run_one(job)
+
+    def _run_one(self, job: Job) -> None:
+        if self._closing.is_set():
+            self._update(job, state="failed", error="stopped: the dashboard is shutting down",
+                         finished_at=time.time())
+            return
+        self._update(job, state="running", started_at=time.time())
+        log.info("job %d started: %s", job.id, job.label)
+
+        def progress(stage: str, done: int, total: int) -> None:
+            self._update(job, stage=str(stage), done=int(done), total=int(total))
+
+        try:
+            result = self._target(job.payload, progress)
+        except DexaugError as exc:
+            self._failed(job, str(exc), None)
+            return
+        except Exception as exc:  # any failure ends this job, never the queue or the server
+            self._failed(job, f"{type(exc).__name__}: {exc}", traceback.format_exc())
+            return
+        self._update(job, state="done", result=result, finished_at=time.time())
+        log.info("job %d done: %s", job.id, job.label)
+
+    def _failed(self, job: Job, error: str, detail: str | None) -> None:
+        self._update(job, state="failed", error=error, detail=detail, finished_at=time.time())
+        log.error("job %d failed: %s: %s%s", job.id, job.label, error,
+                  f"\n{detail}" if detail else "")
+
+
+def run_augmentation(payload: tuple[Any, str, Any], progress: Callable[[str, int, int], None]
+                     ) -> dict[str, Any]:
+    """The dashboard's job: ``augment_demo(demo, out_root, opts)``; returns the
+    summary as written to ``summary.json`` plus ``skipped``."""
+    from augment.pipeline import augment_demo
+
+    demo, out_root, opts = payload
+    summary = augment_demo(demo, out_root, opts, progress=progress)
+    return {**summary.to_json(), "skipped": summary.skipped}

@@ -1,0 +1,236 @@
+"""The dashboard's web server (aiohttp): the page, a small JSON API, thumbnails and reports.
+
+Routes::
+
+    GET  /                      the page (static/index.html, app.js)
+    GET  /api/sessions          sessions, their demos (or why none), finished results, options
+    GET  /api/jobs              every job: state, pipeline stage and progress, result or error
+    POST /api/augment           {"demo": KEY} → queue KEY's augmentation; the job as JSON
+    GET  /thumbnails/KEY.png    the demo grasp (a placeholder SVG without OpenGL)
+    GET  /results/...           the output folder: each demo's report.html and its images
+
+The page polls ``/api/jobs`` for live progress: polling needs no connection state on either
+side, survives a restarted server, and at a few requests per second costs nothing here.
+
+Nothing slow runs on the event loop: session scans go to the default thread pool, renders to
+one dedicated render thread (:mod:`dexaug.dashboard.catalog`), augmentations to the job
+thread (:mod:`dexaug.dashboard.jobs`; the pipeline runs its own process pools). The server runs
+its loop in a background thread (:meth:`Dashboard.start`), so tests and the CLI drive it the
+same way.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import html
+import logging
+import threading
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from aiohttp import web
+
+from augment.pipeline import AugmentOptions
+from dexaug.dashboard.catalog import Catalog, result_view
+from dexaug.dashboard.jobs import JobQueue, JobTarget, run_augmentation
+from sim.errors import DexaugError
+
+__all__ = ["Dashboard", "DashboardConfig", "DashboardError"]
+
+log = logging.getLogger(__name__)
+
+
+class DashboardError(DexaugError):
+    """The dashboard cannot start (port taken, page assets missing)."""
+
+
+@dataclass
+class DashboardConfig:
+    """Where the sessions are, where results go, what an augmentation does, where to listen
+    (port 0 picks a free one)."""
+
+    sessions_dir: Path = Path("recordings")
+    out_root: Path = Path("datasets")
+    options: AugmentOptions = field(default_factory=AugmentOptions)
+    host: str = "127.0.0.1"
+    port: int = 8765
+
+
+class Dashboard:
+    """The dashboard (module docstring). ``target`` replaces the augmentation run in a job
+    (tests); :meth:`start` serves and returns the URL, :meth:`close` stops everything."""
+
+    def __init__(self, config: DashboardConfig | None = None, *,
+                 target: JobTarget = run_augmentation) -> None:
+        cfg = config or DashboardConfig()
+        # absolute: summaries store dataset paths, and the report links are made relative to it
+        self.config = DashboardConfig(Path(cfg.sessions_dir).resolve(),
+                                      Path(cfg.out_root).resolve(), cfg.options, cfg.host,
+                                      cfg.port)
+        self.catalog = Catalog(self.config.sessions_dir, self.config.out_root,
+                               self.config.options)
+        self.jobs = JobQueue(target)
+        self._render = ThreadPoolExecutor(1, thread_name_prefix="dexaug-render")
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._thread: threading.Thread | None = None
+        self.port: int | None = None
+        self.url: str | None = None
+
+    # ------------------------------------------------------------------------------ lifecycle
+
+    def _app(self) -> web.Application:
+        static = Path(str(resources.files("dexaug.dashboard") / "static"))
+        if not (static / "index.html").is_file():
+            raise DashboardError(f"{static}: the page assets (index.html, app.js) are missing; "
+                                 "reinstall dexaug")
+        self.config.out_root.mkdir(parents=True, exist_ok=True)
+        app = web.Application()
+
+        async def index(_request: web.Request) -> web.FileResponse:
+            return web.FileResponse(static / "index.html")
+
+        async def no_icon(_request: web.Request) -> web.Response:
+            return web.Response(status=204)
+
+        app.router.add_get("/", index)
+        app.router.add_get("/favicon.ico", no_icon)
+        app.router.add_get("/api/sessions", self._sessions)
+        app.router.add_get("/api/jobs", self._jobs)
+        app.router.add_post("/api/augment", self._augment)
+        app.router.add_get("/thumbnails/{key}.png", self._thumbnail)
+        app.router.add_static("/static/", static)
+        app.router.add_static("/results/", self.config.out_root)
+        return app
+
+    def start(self, timeout_s: float = 10.0) -> str:
+        """Serve in a background thread; returns the page URL."""
+        app = self._app()
+        ready = threading.Event()
+        errors: list[BaseException] = []
+
+        def serve() -> None:
+            loop = asyncio.new_event_loop()
+            self._loop = loop
+            asyncio.set_event_loop(loop)
+            runner = web.AppRunner(app, access_log=None, handle_signals=False)
+            try:
+                loop.run_until_complete(runner.setup())
+                site = web.TCPSite(runner, self.config.host, self.config.port)
+                loop.run_until_complete(site.start())
+                server = site._server  # aiohttp keeps the asyncio server here
+                self.port = int(server.sockets[0].getsockname()[1])  # type: ignore[union-attr]
+            except BaseException as exc:  # reported to start()'s caller
+                errors.append(exc)
+                ready.set()
+                loop.run_until_complete(runner.cleanup())
+                loop.close()
+                return
+            ready.set()
+            try:
+                loop.run_forever()
+            finally:
+                loop.run_until_complete(runner.cleanup())
+                loop.close()
+
+        self._thread = threading.Thread(target=serve, name="dexaug-dashboard", daemon=True)
+        self._thread.start()
+        if not ready.wait(timeout_s):
+            raise DashboardError(f"the dashboard did not start within {timeout_s} s")
+        if errors:
+            raise DashboardError(f"cannot serve on {self.config.host}:{self.config.port}: "
+                                 f"{errors[0]}") from errors[0]
+        host = "localhost" if self.config.host in ("127.0.0.1", "0.0.0.0", "::") else \
+            self.config.host
+        self.url = f"http://{host}:{self.port}/"
+        log.info("dashboard on %s (sessions %s, results %s)", self.url,
+                 self.config.sessions_dir, self.config.out_root)
+        return self.url
+
+    def close(self) -> None:
+        """Stop serving, stop a running job, and the render thread."""
+        loop = self._loop
+        if loop is not None and self._thread is not None:
+            loop.call_soon_threadsafe(loop.stop)
+            self._thread.join(10.0)
+            self._thread = None
+        self.jobs.close()
+        self._render.shutdown(wait=False, cancel_futures=True)
+
+    def __enter__(self) -> Dashboard:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -------------------------------------------------------------------------------- handlers
+
+    def _options_json(self) -> dict[str, Any]:
+        o = self.config.options
+        return {"n": o.n, "validate": o.validate, "workers": o.workers, "gallery": o.gallery,
+                "seed": o.seed, "time_budget_s": o.time_budget_s, "table": o.table,
+                "link_penetration": o.link_penetration,
+                "sessions_dir": str(self.config.sessions_dir),
+                "out_root": str(self.config.out_root)}
+
+    def _job_json(self, job: dict[str, Any]) -> dict[str, Any]:
+        if job.get("result") is not None:
+            job = {**job, "result": result_view(job["result"], self.config.out_root)}
+        return job
+
+    async def _sessions(self, _request: web.Request) -> web.Response:
+        try:
+            sessions = await asyncio.to_thread(self.catalog.to_json)
+        except DexaugError as exc:
+            return web.json_response({"error": str(exc), "sessions": [],
+                                      "options": self._options_json()})
+        return web.json_response({"error": None, "sessions": sessions,
+                                  "options": self._options_json()})
+
+    async def _jobs(self, _request: web.Request) -> web.Response:
+        return web.json_response({"jobs": [self._job_json(j) for j in self.jobs.snapshot()]})
+
+    async def _augment(self, request: web.Request) -> web.Response:
+        try:
+            key = str((await request.json())["demo"])
+        except (ValueError, KeyError, TypeError):
+            return web.json_response({"error": 'expected JSON {"demo": KEY}'}, status=400)
+        entry = self.catalog.demo(key)
+        if entry is None:
+            return web.json_response({"error": f"no demo {key!r} (reload the page)"},
+                                     status=404)
+        if entry.error:
+            return web.json_response({"error": entry.error}, status=409)
+        job = self.jobs.submit(key, entry.demo.id,
+                               (entry.demo, str(self.config.out_root), self.config.options))
+        return web.json_response({"job": self._job_json(job.to_json())})
+
+    async def _thumbnail(self, request: web.Request) -> web.StreamResponse:
+        key = request.match_info["key"]
+        loop = asyncio.get_running_loop()
+        try:
+            path, why = await loop.run_in_executor(self._render, self.catalog.thumbnail, key)
+        except RuntimeError:   # the render thread is shut down: closing
+            path, why = None, "the dashboard is shutting down"
+        if path is not None:
+            return web.FileResponse(path)
+        return web.Response(body=_placeholder(why or "no image"), content_type="image/svg+xml",
+                            headers={"X-Dexaug-Placeholder": "1", "Cache-Control": "no-store"})
+
+
+def _placeholder(why: str) -> bytes:
+    """A 320×240 grey SVG saying why there is no picture (the reason, wrapped)."""
+    words, lines, line = why.split(), [], ""
+    for w in words:
+        if len(line) + len(w) > 40 and line:
+            lines.append(line)
+            line = ""
+        line = f"{line} {w}".strip()
+    lines.append(line)
+    text = "".join(f"<tspan x='160' dy='1.3em'>{html.escape(t)}</tspan>" for t in lines[:6])
+    return (f"<svg xmlns='http://www.w3.org/2000/svg' width='320' height='240'>"
+            f"<rect width='320' height='240' fill='#e6e6e6'/><text x='160' y='80' "
+            f"font-family='sans-serif' font-size='13' fill='#555' text-anchor='middle'>"
+            f"<tspan x='160' dy='0'>no preview</tspan>{text}</text></svg>").encode()

@@ -1,0 +1,215 @@
+"""The dashboard (``dexaug ui``): job queue, JSON API, and the page in headless Chromium.
+
+The browser test is the user's path, checked on content: a session without a usable grasp shows
+its reason; "Augment" on the dice demo runs the real pipeline (small options) with progress on
+the page; the numbers the page then shows equal ``summary.json`` and the dataset, and the
+report it links states the same passed count; a reload shows the finished result directly. A
+screenshot goes to ``tests/artifacts/``. The queue and API tests use fake jobs (no pipeline):
+order, progress, a dexaug error, an unexpected error, bad requests.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import shutil
+import time
+import urllib.error
+import urllib.request
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from augment import dataset
+from dexaug.dashboard.jobs import JobQueue
+from sim.errors import DexaugError
+from sim.paths import REPO_ROOT
+from tests.browser import artifact_path, chromium, new_page
+from tests.conftest import needs_menagerie, needs_ycb
+
+DICE = REPO_ROOT / "recordings" / "demo_062_dice.mcap"
+RAW = REPO_ROOT / "recordings" / "synth_005_tomato_soup_can.mcap"
+__all__ = ["chromium"]  # the session fixture, imported for pytest
+
+
+def fake_job(payload: Any, progress) -> dict[str, Any]:
+    """A fake job target: ``("ok", n)`` reports n progress steps and returns
+    a summary-like dict; ``("fail", msg)`` raises a DexaugError; ``("bug", msg)`` another
+    error; the dashboard's own payload ``(demo, out, opts)`` fails as the pipeline would."""
+    if len(payload) == 3:
+        raise DexaugError(f"{payload[0].id}: FSG found no grasp")
+    kind, arg = payload
+    if kind == "fail":
+        raise DexaugError(arg)
+    if kind == "bug":
+        raise KeyError(arg)
+    for k in range(arg + 1):
+        progress("fsg", k, arg)
+    return {"generated": arg, "passed": arg - 1, "report": None}
+
+
+def _wait_final(q: JobQueue, n: int, timeout_s: float = 60.0) -> list[dict[str, Any]]:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        jobs = q.snapshot()
+        if len(jobs) == n and all(j["state"] in ("done", "failed") for j in jobs):
+            return jobs
+        time.sleep(0.1)
+    raise AssertionError(f"jobs not finished in {timeout_s} s: {q.snapshot()}")
+
+
+def test_job_queue_order_progress_and_failures() -> None:
+    q = JobQueue(fake_job)
+    try:
+        a = q.submit("a", "job a", ("ok", 5))
+        assert q.submit("a", "job a again", ("ok", 9)) is a   # a double click queues nothing
+        q.submit("b", "job b", ("fail", "object 999_nothing is not installed"))
+        q.submit("c", "job c", ("bug", "palm"))
+        q.submit("d", "job d", ("ok", 2))
+        jobs = _wait_final(q, 4)
+    finally:
+        q.close()
+    by = {j["key"]: j for j in jobs}
+    assert by["a"]["state"] == "done" and by["a"]["result"]["passed"] == 4
+    assert (by["a"]["stage"], by["a"]["done"], by["a"]["total"]) == ("fsg", 5, 5)
+    assert by["b"]["state"] == "failed" and by["b"]["error"] == "object 999_nothing is not installed"
+    assert by["c"]["state"] == "failed" and by["c"]["error"] == "KeyError: 'palm'"
+    assert by["d"]["state"] == "done"      # the queue outlives a failed job
+    order = sorted(jobs, key=lambda j: j["id"])
+    for before, after in itertools.pairwise(order):   # one at a time, in order
+        assert after["started_at"] >= before["finished_at"]
+
+
+def _sessions_dir(tmp_path: Path, *extra: Path) -> Path:
+    d = tmp_path / "sessions"
+    d.mkdir()
+    for src in (DICE, RAW, *extra):
+        shutil.copy(src, d / src.name)
+    return d
+
+
+def _get(url: str) -> tuple[int, Any]:
+    try:
+        with urllib.request.urlopen(url, timeout=30) as r:
+            body = r.read()
+            ctype = r.headers.get("Content-Type", "")
+            return r.status, json.loads(body) if "json" in ctype else (ctype, body)
+    except urllib.error.HTTPError as exc:
+        return exc.code, json.loads(exc.read())
+
+
+def _post(url: str, body: bytes) -> tuple[int, Any]:
+    req = urllib.request.Request(url, body, {"Content-Type": "application/json"})
+    try:
+        with urllib.request.urlopen(req, timeout=30) as r:
+            return r.status, json.loads(r.read())
+    except urllib.error.HTTPError as exc:
+        return exc.code, json.loads(exc.read())
+
+
+@needs_menagerie
+@needs_ycb
+def test_api_lists_errors_and_survives_a_failed_job(tmp_path: Path) -> None:
+    from augment.pipeline import AugmentOptions
+    from dexaug.dashboard import Dashboard, DashboardConfig
+
+    sessions = _sessions_dir(tmp_path)
+    (sessions / "junk.mcap").write_bytes(b"not an mcap file" * 4)
+    cut = DICE.read_bytes()
+    (sessions / "cut.mcap").write_bytes(cut[: len(cut) // 2])
+    cfg = DashboardConfig(sessions, tmp_path / "out", AugmentOptions(n=5, workers=1, gallery=0),
+                          port=0)
+    with Dashboard(cfg, target=fake_job) as dash:
+        url = dash.start()
+        status, doc = _get(url + "api/sessions")
+        assert status == 200 and doc["error"] is None and doc["options"]["n"] == 5
+        by = {s["name"]: s for s in doc["sessions"]}
+        assert set(by) == {"cut.mcap", "demo_062_dice.mcap", "junk.mcap", RAW.name}
+        assert "raw input only" in by[RAW.name]["error"] and not by[RAW.name]["demos"]
+        assert "junk.mcap" in by["junk.mcap"]["error"] and "not an MCAP" in by["junk.mcap"]["error"]
+        cut_s = by["cut.mcap"]
+        assert cut_s["error"] or "truncated" in cut_s["warning"]   # listed, never hidden
+        (dice,) = by["demo_062_dice.mcap"]["demos"]
+        assert dice["object"] == "062_dice" and "thumb" in dice["fingers"] and not dice["result"]
+        status, (ctype, img) = _get(url + dice["thumbnail"].lstrip("/"))
+        assert status == 200 and (img.startswith(b"\x89PNG") or b"no preview" in img), ctype
+        assert _post(url + "api/augment", b"{}")[0] == 400
+        assert _post(url + "api/augment", json.dumps({"demo": "nope"}).encode())[0] == 404
+        # a job that fails as the pipeline would: the message reaches the API, the server
+        # goes on answering
+        status, doc = _post(url + "api/augment", json.dumps({"demo": dice["key"]}).encode())
+        assert status == 200 and doc["job"]["state"] in ("queued", "running")
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline:
+            jobs = _get(url + "api/jobs")[1]["jobs"]
+            if jobs[-1]["state"] == "failed":
+                break
+            time.sleep(0.1)
+        assert jobs[-1]["error"] == f"{dice['id']}: FSG found no grasp"
+        assert _get(url + "api/sessions")[0] == 200
+
+
+@needs_menagerie
+@needs_ycb
+@pytest.mark.timeout(240)
+def test_augment_a_demo_from_the_page(chromium, tmp_path: Path) -> None:
+    from augment.pipeline import AugmentOptions
+    from dexaug.dashboard import Dashboard, DashboardConfig
+
+    t0 = time.perf_counter()
+    out = tmp_path / "out"
+    opts = AugmentOptions(n=20, workers=2, gallery=1, time_budget_s=100.0)
+    cfg = DashboardConfig(_sessions_dir(tmp_path), out, opts, port=0)
+    console: list[str] = []
+    with Dashboard(cfg) as dash:
+        url = dash.start()
+        page = new_page(chromium, https=False, console=console, viewport=(1200, 900))
+        page.goto(url)
+        page.wait_for_function("() => document.body.dataset.loaded === '1'", timeout=30_000)
+        bad = page.locator(f".session[data-session='{RAW.name}'] .session-error")
+        assert "raw input only" in bad.inner_text()
+        assert page.locator(f".session[data-session='{RAW.name}'] .demo").count() == 0
+        row = page.locator(".session[data-session='demo_062_dice.mcap'] .demo")
+        assert row.count() == 1
+        assert "062_dice" in row.inner_text() and "thumb" in row.inner_text()
+        key = row.get_attribute("data-key")
+        # record every progress line the page shows: the progress is live, not a final flash
+        page.evaluate("""() => { window.seen = new Set();
+            new MutationObserver(() => document.querySelectorAll('.progress-text')
+              .forEach(e => window.seen.add(e.textContent)))
+            .observe(document.body, {childList: true, subtree: true, characterData: true}); }""")
+        row.locator("button.augment").click()
+        try:
+            row.locator("a.report-link").wait_for(timeout=150_000)
+        except Exception as exc:
+            raise AssertionError(f"no report link; the row says {row.inner_text()!r}; "
+                                 f"jobs {dash.jobs.snapshot()}") from exc
+        seen = page.evaluate("() => [...window.seen]")
+        assert any(s.startswith("FSG sampling") for s in seen), seen
+        assert any(s.startswith("validation: ") for s in seen), seen
+        shown = {c: row.locator(f".{c}").inner_text() for c in ("n-generated", "n-passed",
+                                                                 "pass-rate")}
+        shot = artifact_path("dashboard_augment.png")
+        page.screenshot(path=str(shot), full_page=True)
+        print(f"\nscreenshot: {shot}")
+
+        summary = json.loads((out / key / "summary.json").read_text())
+        table = dataset.load(summary["dataset"])["062_dice"]
+        assert int(shown["n-passed"]) == summary["passed"] == len(table) > 0
+        assert table["passed"].all()
+        assert int(shown["n-generated"]) == summary["generated"] == len(table) + len(table.rejected)
+        assert shown["pass-rate"] == f"{100 * summary['passed'] / summary['generated']:.1f} %"
+
+        href = row.locator("a.report-link").get_attribute("href")
+        report = new_page(chromium, https=False)
+        report.goto(url.rstrip("/") + href)
+        assert report.locator("#m-grasps-passed-validation").inner_text() == str(len(table))
+        assert report.locator("img[alt='palm cloud']").evaluate("e => e.naturalWidth") > 0
+
+        page.reload()       # a finished demo shows its result directly, without a job
+        page.wait_for_function("() => document.body.dataset.loaded === '1'", timeout=30_000)
+        assert "earlier" in row.locator(".done-note").inner_text()
+        assert row.locator(".n-passed").inner_text() == shown["n-passed"]
+    assert not [c for c in console if c.startswith(("error", "pageerror"))], console
+    print(f"dashboard test wall time {time.perf_counter() - t0:.1f} s")
