@@ -3,8 +3,8 @@
 The browser test is the user's path, checked on content: a session without a usable grasp shows
 its reason; "Augment" on the dice demo runs the real pipeline (small options) with progress on
 the page; the numbers the page then shows equal ``summary.json`` and the dataset, and the
-report it links states the same passed count; a reload shows the finished result directly. A
-screenshot goes to ``tests/artifacts/``. The queue and API tests use fake jobs (no pipeline):
+report it links states the same passed count; a restarted dashboard shows the finished result
+directly. A screenshot goes to ``tests/artifacts/``. The queue and API tests use fake jobs (no pipeline):
 order, progress, a dexaug error, an unexpected error, bad requests.
 """
 
@@ -207,9 +207,12 @@ def test_augment_a_demo_from_the_page(chromium, tmp_path: Path) -> None:
         assert report.locator("#m-grasps-passed-validation").inner_text() == str(len(table))
         assert report.locator("img[alt='palm cloud']").evaluate("e => e.naturalWidth") > 0
 
-        page.reload()       # a finished demo shows its result directly, without a job
+    with Dashboard(cfg) as again:   # a restarted dashboard shows the finished demo directly
+        page.goto(again.start())
         page.wait_for_function("() => document.body.dataset.loaded === '1'", timeout=30_000)
         assert "earlier" in row.locator(".done-note").inner_text()
         assert row.locator(".n-passed").inner_text() == shown["n-passed"]
+        assert row.locator("a.report-link").get_attribute("href") == href
+        assert not again.jobs.snapshot()
     assert not [c for c in console if c.startswith(("error", "pageerror"))], console
     print(f"dashboard test wall time {time.perf_counter() - t0:.1f} s")

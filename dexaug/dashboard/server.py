@@ -25,7 +25,7 @@ import asyncio
 import html
 import logging
 import threading
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -74,7 +74,9 @@ class Dashboard:
                                self.config.options)
         self.jobs = JobQueue(target)
         self._render = ThreadPoolExecutor(1, thread_name_prefix="dexaug-render")
+        self._static = Path(str(resources.files("dexaug.dashboard") / "static"))
         self._loop: asyncio.AbstractEventLoop | None = None
+        self._stop: asyncio.Event | None = None
         self._thread: threading.Thread | None = None
         self.port: int | None = None
         self.url: str | None = None
@@ -82,66 +84,57 @@ class Dashboard:
     # ------------------------------------------------------------------------------ lifecycle
 
     def _app(self) -> web.Application:
-        static = Path(str(resources.files("dexaug.dashboard") / "static"))
-        if not (static / "index.html").is_file():
-            raise DashboardError(f"{static}: the page assets (index.html, app.js) are missing; "
-                                 "reinstall dexaug")
+        if not (self._static / "index.html").is_file():
+            raise DashboardError(f"{self._static}: the page assets (index.html, app.js) are "
+                                 "missing; reinstall dexaug")
         self.config.out_root.mkdir(parents=True, exist_ok=True)
         app = web.Application()
-
-        async def index(_request: web.Request) -> web.FileResponse:
-            return web.FileResponse(static / "index.html")
-
-        async def no_icon(_request: web.Request) -> web.Response:
-            return web.Response(status=204)
-
-        app.router.add_get("/", index)
-        app.router.add_get("/favicon.ico", no_icon)
-        app.router.add_get("/api/sessions", self._sessions)
-        app.router.add_get("/api/jobs", self._jobs)
-        app.router.add_post("/api/augment", self._augment)
-        app.router.add_get("/thumbnails/{key}.png", self._thumbnail)
-        app.router.add_static("/static/", static)
-        app.router.add_static("/results/", self.config.out_root)
+        app.add_routes([web.get("/", self._index), web.get("/favicon.ico", self._icon),
+                        web.get("/api/sessions", self._sessions), web.get("/api/jobs", self._jobs),
+                        web.post("/api/augment", self._augment),
+                        web.get("/thumbnails/{key}.png", self._thumbnail),
+                        web.static("/static/", self._static),
+                        web.static("/results/", self.config.out_root)])
         return app
+
+    async def _serve(self, app: web.Application, started: Future[int]) -> None:
+        """The server thread's whole life: listen, report the port (or the error) through
+        ``started``, run until :meth:`close` sets the stop event, clean up."""
+        self._loop, self._stop = asyncio.get_running_loop(), asyncio.Event()
+        runner = web.AppRunner(app, access_log=None, handle_signals=False)
+        await runner.setup()
+        try:
+            site = web.TCPSite(runner, self.config.host, self.config.port)
+            await site.start()
+            sock = site._server.sockets[0]  # type: ignore[union-attr]  # aiohttp keeps it here
+            started.set_result(int(sock.getsockname()[1]))
+            await self._stop.wait()
+        except OSError as exc:
+            started.set_exception(exc)
+        finally:
+            await runner.cleanup()
 
     def start(self, timeout_s: float = 10.0) -> str:
         """Serve in a background thread; returns the page URL."""
         app = self._app()
-        ready = threading.Event()
-        errors: list[BaseException] = []
+        started: Future[int] = Future()
 
-        def serve() -> None:
-            loop = asyncio.new_event_loop()
-            self._loop = loop
-            asyncio.set_event_loop(loop)
-            runner = web.AppRunner(app, access_log=None, handle_signals=False)
+        def run() -> None:
             try:
-                loop.run_until_complete(runner.setup())
-                site = web.TCPSite(runner, self.config.host, self.config.port)
-                loop.run_until_complete(site.start())
-                server = site._server  # aiohttp keeps the asyncio server here
-                self.port = int(server.sockets[0].getsockname()[1])  # type: ignore[union-attr]
-            except BaseException as exc:  # reported to start()'s caller
-                errors.append(exc)
-                ready.set()
-                loop.run_until_complete(runner.cleanup())
-                loop.close()
-                return
-            ready.set()
-            try:
-                loop.run_forever()
-            finally:
-                loop.run_until_complete(runner.cleanup())
-                loop.close()
+                asyncio.run(self._serve(app, started))
+            except BaseException as exc:  # reported to start()'s caller, not lost in a thread
+                if not started.done():
+                    started.set_exception(exc)
 
-        self._thread = threading.Thread(target=serve, name="dexaug-dashboard", daemon=True)
+        self._thread = threading.Thread(target=run, name="dexaug-dashboard", daemon=True)
         self._thread.start()
-        if not ready.wait(timeout_s):
-            raise DashboardError(f"the dashboard did not start within {timeout_s} s")
-        if errors:
+        try:
+            self.port = started.result(timeout_s)
+        except TimeoutError:
+            raise DashboardError(f"the dashboard did not start within {timeout_s} s") from None
+        except Exception as exc:
             raise DashboardError(f"cannot serve on {self.config.host}:{self.config.port}: "
-                                 f"{errors[0]}") from errors[0]
+                                 f"{exc}") from exc
         host = "localhost" if self.config.host in ("127.0.0.1", "0.0.0.0", "::") else \
             self.config.host
         self.url = f"http://{host}:{self.port}/"
@@ -150,12 +143,11 @@ class Dashboard:
         return self.url
 
     def close(self) -> None:
-        """Stop serving, stop a running job, and the render thread."""
-        loop = self._loop
-        if loop is not None and self._thread is not None:
-            loop.call_soon_threadsafe(loop.stop)
+        """Stop serving, stop taking jobs, and stop the render thread."""
+        if self._thread is not None and self._loop is not None and self._stop is not None:
+            self._loop.call_soon_threadsafe(self._stop.set)
             self._thread.join(10.0)
-            self._thread = None
+        self._thread = None
         self.jobs.close()
         self._render.shutdown(wait=False, cancel_futures=True)
 
@@ -179,6 +171,12 @@ class Dashboard:
         if job.get("result") is not None:
             job = {**job, "result": result_view(job["result"], self.config.out_root)}
         return job
+
+    async def _index(self, _request: web.Request) -> web.FileResponse:
+        return web.FileResponse(self._static / "index.html")
+
+    async def _icon(self, _request: web.Request) -> web.Response:
+        return web.Response(status=204)   # no icon, and no 404 in the browser console
 
     async def _sessions(self, _request: web.Request) -> web.Response:
         try:
