@@ -10,6 +10,7 @@ import pytest
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 from sim.paths import SHARED_ASSETS, ensure_menagerie_root, ycb_root
+from tests.browser import chromium  # noqa: F401  (one session-wide browser for every module)
 
 
 def _menagerie_available() -> bool:

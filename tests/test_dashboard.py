@@ -25,12 +25,11 @@ from augment import dataset
 from dexaug.dashboard.jobs import JobQueue
 from sim.errors import DexaugError
 from sim.paths import REPO_ROOT
-from tests.browser import artifact_path, chromium, new_page
+from tests.browser import artifact_path, new_page
 from tests.conftest import needs_menagerie, needs_ycb
 
 DICE = REPO_ROOT / "recordings" / "demo_062_dice.mcap"
 RAW = REPO_ROOT / "recordings" / "synth_005_tomato_soup_can.mcap"
-__all__ = ["chromium"]  # the session fixture, imported for pytest
 
 
 def fake_job(payload: Any, progress) -> dict[str, Any]:

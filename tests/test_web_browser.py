@@ -23,7 +23,7 @@ import pytest
 from sim.paths import SHARED_ASSETS
 from teleop import keys
 from teleop.messages import decode
-from tests.browser import artifact_path, chromium, iwer_build_dir, iwer_missing, new_page
+from tests.browser import artifact_path, iwer_build_dir, iwer_missing, new_page
 
 CAPTURE_DIR = SHARED_ASSETS / "handdata" / "quest3_webxr"
 CAPTURE = CAPTURE_DIR / "cap.min.js"
@@ -31,7 +31,6 @@ DERIVED = CAPTURE_DIR / "derived" / "quest3_hands_world.npz"
 FIRST, LAST = 950, 1711  # the capture's hand-tracking segment is rows 955–1711
 pytestmark = [pytest.mark.skipif(not CAPTURE.is_file(), reason=f"no hand capture {CAPTURE}"),
               pytest.mark.timeout(180)]
-__all__ = ["chromium"]  # the session fixture, imported for pytest
 
 
 def _ingest(rig: str, **kw):
