@@ -112,13 +112,18 @@ def test_wrong_grasp_vector_length_is_one_clear_error(validators, references) ->
         Grasp.from_arrays(g.palm_pos, [1.0, 1.0, 0.0, 0.0], g.joints)
 
 
-def test_validate_config_errors_name_the_key(tmp_path: Path) -> None:
+@pytest.mark.parametrize(("old", "new", "key"), [
+    ("hold_time_s = 1.0", "hold_time_s = -1.0", r"lift_drop\.hold_time_s"),
+    ("friction = [0.8,", "friction = [0.0,", r"common\.friction"),   # grip force = weight / μ
+])
+def test_validate_config_errors_name_the_key(tmp_path: Path, old: str, new: str, key: str) -> None:
     from sim.paths import CONFIG_DIR
 
     text = (CONFIG_DIR / "validate.toml").read_text()
+    assert old in text
     bad = tmp_path / "validate.toml"
-    bad.write_text(text.replace("hold_time_s = 1.0", "hold_time_s = -1.0"))
-    with pytest.raises(ConfigError, match=r"validate\.toml: lift_drop\.hold_time_s"):
+    bad.write_text(text.replace(old, new))
+    with pytest.raises(ConfigError, match=rf"validate\.toml: {key}"):
         ValidateConfig.load(bad)
 
 
@@ -163,13 +168,3 @@ def test_grip_force_is_sized_by_weight_and_friction(validators, references) -> N
         common.contact.friction[0] * targets.n_bodies_near)
     assert targets.grip_force_n >= max(at_least, common.min_grip_force_n)
     assert targets.grip_force_n < 20 * at_least  # the moment term stays bounded
-
-
-def test_validate_config_rejects_frictionless_contacts(tmp_path: Path) -> None:
-    from sim.paths import CONFIG_DIR
-
-    text = (CONFIG_DIR / "validate.toml").read_text()
-    bad = tmp_path / "validate.toml"
-    bad.write_text(text.replace("friction = [0.8,", "friction = [0.0,"))
-    with pytest.raises(ConfigError, match=r"validate\.toml: common\.friction"):
-        ValidateConfig.load(bad)
