@@ -35,15 +35,17 @@ browser: $(STAMP)
 	  || { command -v npm >/dev/null && npm install --silent --no-audit --no-fund --prefix $(NODE_PREFIX) iwer@$(IWER_VERSION) >/dev/null \
 	       || echo "note: no npm or iwer@$(IWER_VERSION) not installable; browser tests will be skipped"; }
 
-demo: $(STAMP)
+demo: $(STAMP) gl
 	$(BIN)/dexaug demo
 
 test: $(STAMP) gl browser
 	$(BIN)/ruff check .
 	$(BIN)/python -m pytest -q
 
-bench: $(STAMP)
+bench: $(STAMP) gl
 	$(BIN)/python benchmarks/bench_validate.py
+	$(BIN)/python benchmarks/bench_augment.py
+	$(BIN)/dexaug bench paper
 
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache
