@@ -26,6 +26,7 @@ if TYPE_CHECKING:
     from augment.dataset import ObjectTable
     from augment.demo import Demo
     from augment.pipeline import DemoSummary
+    from sim.grasp import Grasp
     from sim.hand import Hand
     from sim.objects import ObjectAsset
 
@@ -63,7 +64,7 @@ def palm_cloud_image(object_points: np.ndarray, palm_positions: np.ndarray,
     return np.hstack(panels)
 
 
-def _render(hand: Hand, obj: ObjectAsset, grasps: list, folder: Path,
+def _render(hand: Hand, obj: ObjectAsset, grasps: list[Grasp], folder: Path,
             names: list[str]) -> list[str]:
     from sim.validate import Validator
 

@@ -25,11 +25,15 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from sim.config import load_toml
 from sim.paths import CONFIG_DIR, REPO_ROOT
+
+if TYPE_CHECKING:
+    from augment.fsg import FsgGrasp
 
 OBJECTS = ("004_sugar_box", "005_tomato_soup_can", "024_bowl", "043_phillips_screwdriver",
            "062_dice")
@@ -75,7 +79,7 @@ def paper_figures(path: Path = PAPER_TABLES) -> dict[tuple[str, str, str], list[
     return out
 
 
-def _diversity(grasps: list, joint_mask: np.ndarray) -> tuple[float, float]:
+def _diversity(grasps: list[FsgGrasp], joint_mask: np.ndarray) -> tuple[float, float]:
     pos = np.array([g.grasp.palm_pos for g in grasps])
     spread = float(np.sqrt(((pos - pos.mean(axis=0)) ** 2).sum(axis=1).mean()))
     q = np.array([g.grasp.joints for g in grasps])[:, joint_mask]

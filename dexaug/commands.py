@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -437,7 +438,7 @@ def bridge(args: argparse.Namespace, console: Console) -> int:
             ingest.close()
 
 
-def _auto_augment(out: Path, console: Console):
+def _auto_augment(out: Path, console: Console) -> Callable[[Path], None]:
     """A recording-closed hook that starts ``dexaug augment PATH --out OUT`` in its own process
     (its log goes to ``OUT/<session>.augment.log``), so augmentation never stalls the bridge."""
     import subprocess

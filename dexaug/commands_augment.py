@@ -11,10 +11,14 @@ import logging
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
+
+if TYPE_CHECKING:
+    from augment.pipeline import AugmentOptions, DemoSummary
 
 from dexaug.cli import command
 
@@ -141,7 +145,7 @@ def _augment_args(p: argparse.ArgumentParser) -> None:
     _generation_args(p)
 
 
-def _augment_options(args: argparse.Namespace):
+def _augment_options(args: argparse.Namespace) -> AugmentOptions:
     from augment.pipeline import AugmentOptions
     from sim.batch import default_workers
 
@@ -201,7 +205,8 @@ def augment_cmd(args: argparse.Namespace, console: Console) -> int:
     return 1 if failed else 0
 
 
-def _watch(folder: Path, poll_s: float, handle, console: Console) -> None:
+def _watch(folder: Path, poll_s: float, handle: Callable[[Path], None],
+           console: Console) -> None:
     """Augment each ``*.mcap`` in ``folder`` once its recorder closed it (a file still being
     written reads as truncated), until Ctrl-C."""
     from teleop.session import SessionError, open_session
@@ -225,7 +230,7 @@ def _watch(folder: Path, poll_s: float, handle, console: Console) -> None:
         console.print("stopped watching")
 
 
-def _summary_table(console: Console, rows: list) -> None:
+def _summary_table(console: Console, rows: list[DemoSummary]) -> None:
     if not rows:
         return
     t = Table(title="augmentation")
