@@ -189,7 +189,9 @@ def augment_cmd(args: argparse.Namespace, console: Console) -> int:
                                                 force=args.force)
             except (DemoError, DexaugError) as exc:
                 failed += 1
-                console.print(f"[red]{path}: {exc}")
+                text = str(exc)
+                console.print(f"[red]{text if str(path) in text else f'{path}: {text}'}",
+                              markup=True, highlight=False)
                 return
             for s in summaries:
                 rows.append(s)
