@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
@@ -189,9 +190,8 @@ def augment_cmd(args: argparse.Namespace, console: Console) -> int:
                                                 force=args.force)
             except (DemoError, DexaugError) as exc:
                 failed += 1
-                text = str(exc)
-                console.print(f"[red]{text if str(path) in text else f'{path}: {text}'}",
-                              markup=True, highlight=False)
+                text = str(exc) if str(path) in str(exc) else f"{path}: {exc}"
+                console.print(f"[red]{escape(text)}", highlight=False)
                 return
             for s in summaries:
                 rows.append(s)
