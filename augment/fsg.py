@@ -69,20 +69,17 @@ budget. Unused finger joints (and all non-finger joints, e.g. the wrist) are 0.
 Parallelism: ``workers`` processes, worker k seeded with ``seed + k`` and asked for its share of
 ``n``; results are merged in worker order and de-duplicated again, so the output is deterministic
 for a seed and worker count unless the time budget cuts a run short. The worker processes
-are kept between calls (:func:`_pool`).
+are kept between calls (:func:`sim.pools.persistent_pool`).
 """
 
 from __future__ import annotations
 
-import atexit
 import dataclasses
 import logging
 import math
 import time
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
-from multiprocessing import get_context
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -94,6 +91,7 @@ from sim.errors import ConfigError, DexaugError
 from sim.grasp import Grasp
 from sim.gws import gws_metrics
 from sim.paths import CONFIG_DIR
+from sim.pools import persistent_pool
 from sim.transforms import mat_to_quat
 
 if TYPE_CHECKING:
@@ -604,23 +602,6 @@ def _worker_run(setup: _Setup, seed: int, worker: int, n: int, budget_s: float,
     return sampler.accepted, sampler.stats, stopped, sets
 
 
-_POOLS: dict[int, ProcessPoolExecutor] = {}
-
-
-def _pool(workers: int) -> ProcessPoolExecutor:
-    """A process pool kept for the life of this process: starting workers (imports, NumPy,
-    SciPy) costs about as much as a whole demo-seeded run, so it is paid once, not per call.
-    Workers come from a fork server (clean, thread-free, modules preloaded): safe to start
-    from threaded programs (the dashboard, the bridge), unlike a plain fork."""
-    pool = _POOLS.get(workers)
-    if pool is None:
-        ctx = get_context("forkserver")
-        ctx.set_forkserver_preload(["augment.fsg"])
-        pool = _POOLS[workers] = ProcessPoolExecutor(workers, mp_context=ctx)
-        atexit.register(pool.shutdown, cancel_futures=True)
-    return pool
-
-
 # ---------------------------------------------------------------------------------------------
 # public entry point
 
@@ -699,7 +680,7 @@ def generate(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: WorkspaceClo
         outs = [_worker_run(setup, seed, 0, n, budget)]
     else:
         share = math.ceil(n / workers)
-        pool = _pool(workers)
+        pool = persistent_pool(workers, ("augment.fsg",))
         futs = [pool.submit(_worker_run, setup, seed + k, k, share, budget)
                 for k in range(workers)]
         outs = [f.result() for f in futs]

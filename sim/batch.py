@@ -1,36 +1,40 @@
 """Validate many grasps on all cores.
 
-Each worker process builds its own hand, object and scenes once (initializer) and then validates
-grasps by index; results come back in input order, so the output does not depend on the number of
-workers (the simulation itself has no randomness).
+Workers come from a pool kept for the life of the process (:mod:`sim.pools`); each builds a
+validator (hand, object, scenes) once per (hand, object, config) and keeps it, so a pipeline that
+validates demo after demo pays neither process start-up nor scene compilation again. Grasps go
+out in chunks and results come back in input order, so the output does not depend on the number
+of workers (the simulation itself has no randomness).
 """
 
 from __future__ import annotations
 
 import os
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
-from multiprocessing import get_context
 from pathlib import Path
 
 from sim.grasp import Grasp
 from sim.hand import Hand
 from sim.objects import load_object
+from sim.pools import persistent_pool
 from sim.validate import ValidateConfig, ValidationResult, Validator
 
-_worker: Validator | None = None
+_VALIDATORS: dict[tuple[str, str, str | None], Validator] = {}
 
 
-def _init(hand: str, obj: str, config_path: str | None) -> None:
-    global _worker
-    config = ValidateConfig.load(config_path) if config_path else ValidateConfig.load()
-    _worker = Validator(Hand.load(hand), load_object(obj), config)
+def _validator(hand: str, obj: str, config_path: str | None) -> Validator:
+    key = (hand, obj, config_path)
+    if key not in _VALIDATORS:
+        config = ValidateConfig.load(config_path) if config_path else ValidateConfig.load()
+        _VALIDATORS[key] = Validator(Hand.load(hand), load_object(obj), config)
+    return _VALIDATORS[key]
 
 
-def _validate_one(args: tuple[Grasp, str]) -> ValidationResult:
-    assert _worker is not None, "worker not initialised"
-    grasp, protocol = args
-    return _worker.validate(grasp, protocol)
+def _validate_chunk(args: tuple[str, str, str | None, Sequence[Grasp], str]
+                    ) -> list[ValidationResult]:
+    hand, obj, config_path, grasps, protocol = args
+    v = _validator(hand, obj, config_path)
+    return [v.validate(g, protocol) for g in grasps]
 
 
 def default_workers() -> int:
@@ -45,20 +49,20 @@ def validate_many(hand: str, obj: str, grasps: Sequence[Grasp], protocol: str = 
     workers = workers or default_workers()
     cfg = str(config_path) if config_path else None
     if workers == 1 or len(grasps) <= 1:
-        _init(hand, obj, cfg)
+        v = _validator(hand, obj, cfg)
         out = []
         for g in grasps:
-            out.append(_validate_one((g, protocol)))
+            out.append(v.validate(g, protocol))
             if progress:
                 progress(len(out))
         return out
-    ctx = get_context("spawn")  # MuJoCo and fork do not mix safely; spawn is deterministic
+    # small chunks: progress stays live and the two workers finish close together
+    size = max(1, min(16, len(grasps) // (workers * 4)))
+    chunks = [(hand, obj, cfg, list(grasps[i:i + size]), protocol)
+              for i in range(0, len(grasps), size)]
     results: list[ValidationResult] = []
-    with ProcessPoolExecutor(workers, mp_context=ctx, initializer=_init,
-                             initargs=(hand, obj, cfg)) as pool:
-        chunk = max(1, len(grasps) // (workers * 8))
-        for res in pool.map(_validate_one, [(g, protocol) for g in grasps], chunksize=chunk):
-            results.append(res)
-            if progress:
-                progress(len(results))
+    for part in persistent_pool(workers, ("sim.validate",)).map(_validate_chunk, chunks):
+        results.extend(part)
+        if progress:
+            progress(len(results))
     return results
