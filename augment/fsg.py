@@ -130,7 +130,7 @@ class FsgParams:
     fingertip_width_m: float = 0.02
     contact_plane_m: float = 0.005
     min_contacts: int = 3
-    max_contacts_per_finger: int = 6
+    max_contacts_per_finger: int = 4
     max_face_depth_m: float = 0.003
     link_clearance_m: float = 0.008
     mu: float = 0.5
