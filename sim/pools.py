@@ -6,17 +6,42 @@ run — so a pipeline that calls FSG and the validator once per demo would pay i
 Pools come from a fork server with the given modules preloaded: each worker is a cheap fork of a
 clean, thread-free process, which is safe to start from threaded programs (the dashboard, the
 bridge), unlike a plain fork of the caller. They are shut down at interpreter exit.
+
+A worker also exits on its own when the process that made its pool is gone: a fork server hands
+every worker the pool's queues and its keep-alive pipe, so after a parent killed by a signal
+(SIGTERM, SIGKILL: no interpreter exit) neither the workers nor the fork server would ever see
+end-of-file, and they would stay forever.
 """
 
 from __future__ import annotations
 
 import atexit
+import os
+import threading
+import time
 from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import get_context
 
 __all__ = ["persistent_pool"]
 
 _POOLS: dict[tuple[int, tuple[str, ...]], ProcessPoolExecutor] = {}
+#: seconds between a worker's checks that its owner is alive
+_OWNER_POLL_S = 1.0
+
+
+def _exit_with_owner(owner_pid: int) -> None:
+    """Worker initializer: a daemon thread that ends this worker once ``owner_pid`` is gone."""
+    def watch() -> None:
+        while True:
+            time.sleep(_OWNER_POLL_S)
+            try:
+                os.kill(owner_pid, 0)
+            except ProcessLookupError:
+                os._exit(0)
+            except PermissionError:  # pid reused by another user's process: the owner is gone
+                os._exit(0)
+
+    threading.Thread(target=watch, name="dexaug-owner-watch", daemon=True).start()
 
 
 def persistent_pool(workers: int, preload: tuple[str, ...]) -> ProcessPoolExecutor:
@@ -30,6 +55,8 @@ def persistent_pool(workers: int, preload: tuple[str, ...]) -> ProcessPoolExecut
     if pool is None:
         ctx = get_context("forkserver")
         ctx.set_forkserver_preload(list(preload))
-        pool = _POOLS[key] = ProcessPoolExecutor(workers, mp_context=ctx)
+        pool = _POOLS[key] = ProcessPoolExecutor(workers, mp_context=ctx,
+                                                 initializer=_exit_with_owner,
+                                                 initargs=(os.getpid(),))
         atexit.register(pool.shutdown, cancel_futures=True)
     return pool
