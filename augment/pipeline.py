@@ -110,11 +110,7 @@ def demo_dir(out_root: Path | str, demo: Demo) -> Path:
 def finished(folder: Path | str, opts: AugmentOptions) -> DemoSummary | None:
     """The summary of ``folder`` when it is finished under ``opts`` (what ``augment_demo``
     would skip), else None: lets a caller (the dashboard) show results without re-running."""
-    return _finished(Path(folder), opts)
-
-
-def _finished(folder: Path, opts: AugmentOptions) -> DemoSummary | None:
-    path = folder / "summary.json"
+    path = Path(folder) / "summary.json"
     if not path.is_file():
         return None
     try:
@@ -140,7 +136,7 @@ def augment_demo(demo: Demo, out_root: Path | str, opts: AugmentOptions | None =
     """
     opts = opts or AugmentOptions()
     folder = demo_dir(out_root, demo)
-    if not force and (done := _finished(folder, opts)) is not None:
+    if not force and (done := finished(folder, opts)) is not None:
         log.info("%s: already augmented (%s), skipping", demo.id, folder)
         return done
     tick = progress or (lambda stage, done, total: None)
