@@ -39,7 +39,7 @@ from sim.io import write_bytes_atomic
 from sim.objects import load_object
 
 __all__ = ["AugmentOptions", "DemoSummary", "augment_demo", "augment_session", "demo_dir",
-           "finished"]
+           "demo_fingers", "finished"]
 
 log = logging.getLogger(__name__)
 
