@@ -197,7 +197,7 @@ def augment_demo(demo: Demo, out_root: Path | str, opts: AugmentOptions | None =
         t0 = time.perf_counter()
         tick("report", 0, 1)
         summary.report = str(write_report(folder, demo, hand, obj, table, summary,
-                                          gallery=opts.gallery))
+                                          np.asarray(cloud.points), gallery=opts.gallery))
         tick("report", 1, 1)
         timings["report"] = time.perf_counter() - t0
     write_bytes_atomic(folder / "summary.json",

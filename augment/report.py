@@ -77,14 +77,13 @@ def _render(hand: Hand, obj: ObjectAsset, grasps: list[Grasp], folder: Path,
 
 
 def write_report(folder: Path, demo: Demo, hand: Hand, obj: ObjectAsset, table: ObjectTable,
-                 summary: DemoSummary, *, gallery: int = 6) -> Path:
-    """Write ``report.html`` and its PNGs into ``folder``; returns the HTML path."""
-    from augment.object_cloud import object_cloud
+                 summary: DemoSummary, object_points: np.ndarray, *, gallery: int = 6) -> Path:
+    """Write ``report.html`` and its PNGs into ``folder``; returns the HTML path.
+    ``object_points`` (n, 3): the object cloud the palm positions are drawn around."""
     from sim.grasp import Grasp
 
     pose = table["palm_pose"]
-    save_png(folder / "palm_cloud.png",
-             palm_cloud_image(np.asarray(object_cloud(obj).points), pose[:, :3]))
+    save_png(folder / "palm_cloud.png", palm_cloud_image(np.asarray(object_points), pose[:, :3]))
     images: list[str] = []
     note = ""
     if gl_available() is not None:

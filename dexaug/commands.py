@@ -179,15 +179,21 @@ def demo(args: argparse.Namespace, console: Console) -> int:
 
     from augment.pipeline import AugmentOptions, augment_session
     from dexaug.commands_augment import progress_bars, stage_ticker
-    from sim.paths import REPO_ROOT, ycb_root
+    from sim.errors import DexaugError
+    from sim.objects import load_object
+    from sim.paths import REPO_ROOT
     from teleop.rerecord import rerecord
     from teleop.session import open_session
 
     args.out.mkdir(parents=True, exist_ok=True)
     session = args.session
     raw = sorted((REPO_ROOT / "recordings").glob("synth_*.mcap"))
-    if ycb_root(required=False) is None:
-        console.print("[yellow]no YCB objects (DEXAUG_YCB_ROOT): using a procedural cylinder")
+    try:   # the committed sessions hold YCB objects: are they installed here?
+        for path in (session, *raw[:1]):
+            load_object(open_session(path).metadata.get("object", ""))
+    except DexaugError as exc:
+        console.print(f"[yellow]{exc}\n→ recording a scripted demonstration on a procedural "
+                      f"cylinder instead", highlight=False)
         session = _procedural_demo_session(args.out / "demo_cylinder.mcap")
         raw = []
     if raw:
@@ -215,23 +221,15 @@ def demo(args: argparse.Namespace, console: Console) -> int:
 def _procedural_demo_session(out: Path) -> Path:
     """A scripted demonstration on the procedural cylinder: the first FSG grasp (manual
     workspace, table mode) that passes lift-drop, performed and recorded."""
-    from augment.fsg import generate
-    from augment.object_cloud import object_cloud
-    from augment.workspace import build_workspace
-    from sim.batch import validate_many
     from sim.errors import DexaugError
     from sim.hand import Hand
-    from sim.objects import load_object
-    from teleop.scripted import record_scripted_demo
+    from teleop.scripted import demonstrable_grasps, record_scripted_demo
 
     hand = Hand.load("shadow_right")
-    res = generate(hand, object_cloud(load_object("cylinder")), build_workspace(hand), n=30,
-                   table=True, link_penetration=True, workers=2, time_budget_s=60.0)
-    results = validate_many(hand.name, "cylinder", [g.grasp for g in res.grasps])
-    passing = [g for g, r in zip(res.grasps, results, strict=True) if r.passed]
+    passing = demonstrable_grasps(hand, "cylinder", 30)
     if not passing:
         raise DexaugError("no FSG grasp of the procedural cylinder passed lift-drop")
-    return record_scripted_demo(hand, "cylinder", passing[0].grasp, out, overwrite=True)
+    return record_scripted_demo(hand, "cylinder", passing[0], out, overwrite=True)
 
 
 def _workspace_args(p: argparse.ArgumentParser) -> None:

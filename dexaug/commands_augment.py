@@ -214,18 +214,25 @@ def _watch(folder: Path, poll_s: float, handle: Callable[[Path], None],
     from teleop.session import SessionError, open_session
 
     seen: set[Path] = set()
+    incomplete: dict[Path, tuple[int, int]] = {}   # (size, mtime) when last found unfinished
     console.print(f"watching {folder} for finished sessions (Ctrl-C to stop)")
     try:
         while True:
             for path in sorted(folder.glob("*.mcap")):
                 if path in seen:
                     continue
+                st = path.stat()
+                if incomplete.get(path) == (st.st_size, st.st_mtime_ns):
+                    continue              # unchanged since it read as unfinished: no re-scan
                 try:
-                    if open_session(path).truncated:
-                        continue          # still recording
+                    unfinished = open_session(path).truncated    # still recording
                 except SessionError:
+                    unfinished = True
+                if unfinished:
+                    incomplete[path] = (st.st_size, st.st_mtime_ns)
                     continue
                 seen.add(path)
+                incomplete.pop(path, None)
                 handle(path)
             time.sleep(poll_s)
     except KeyboardInterrupt:

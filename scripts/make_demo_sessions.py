@@ -29,15 +29,10 @@ import tempfile
 from pathlib import Path
 
 from augment.demo import Demo, DemoError, extract_demos, save_demo
-from augment.fsg import generate
-from augment.object_cloud import object_cloud
-from augment.workspace import build_workspace
-from sim.batch import validate_many
 from sim.hand import Hand
 from sim.io import atomic_path
-from sim.objects import load_object
 from sim.paths import REPO_ROOT, ensure_menagerie_root
-from teleop.scripted import record_scripted_demo
+from teleop.scripted import demonstrable_grasps, record_scripted_demo
 
 OBJECTS = ("004_sugar_box", "005_tomato_soup_can", "024_bowl", "043_phillips_screwdriver",
            "062_dice")
@@ -56,19 +51,13 @@ def main() -> None:
         logging.getLogger(noisy).setLevel(logging.WARNING)
     ensure_menagerie_root()
     hand = Hand.load(args.hand)
-    ws = build_workspace(hand)
     rec_dir = REPO_ROOT / "recordings"
     for obj in args.objects:
-        res = generate(hand, object_cloud(load_object(obj)), ws, n=args.candidates, table=True,
-                       link_penetration=True, seed=0, workers=2, time_budget_s=60.0)
-        results = validate_many(hand.name, obj, [g.grasp for g in res.grasps])
-        passing = [i for i, r in enumerate(results) if r.passed][:args.tries]
-        log.info("%s: %d proposed, %d pass lift-drop", obj, len(res.grasps), len(passing))
+        passing = demonstrable_grasps(hand, obj, args.candidates)[:args.tries]
         best: tuple[tuple[int, float], Path, Demo] | None = None
         with tempfile.TemporaryDirectory() as tmp:
-            for i in passing:
-                path = record_scripted_demo(hand, obj, res.grasps[i].grasp,
-                                            Path(tmp) / f"{i}.mcap")
+            for i, grasp in enumerate(passing):
+                path = record_scripted_demo(hand, obj, grasp, Path(tmp) / f"{i}.mcap")
                 try:
                     demo = max(extract_demos(path), key=lambda d: d.duration_s)
                 except DemoError as exc:

@@ -38,16 +38,12 @@ class RerecordError(DexaugError):
     """The source session cannot be re-recorded (no input, no hand or object named)."""
 
 
-def _mark_indices(src: Session) -> list[int]:
-    """Indices into the source's ``/hands`` messages after which a ``grasp_mark`` was logged."""
+def _mark_indices(src: Session, hands_log_ns: np.ndarray) -> list[int]:
+    """Counts of ``/hands`` messages (log times ``hands_log_ns``, in order) logged at or before
+    each ``grasp_mark`` of the source: the points at which to re-issue the marks."""
     marks = sorted(t for t, e in src.events() if e.get("type") == "grasp_mark")
-    times = [m.log_time_ns for m in src.messages(TOPIC_HANDS, decode=False)]
-    out = []
-    for t in marks:
-        before = sum(1 for x in times if x <= t)
-        if before:
-            out.append(before)
-    return out
+    counts = np.searchsorted(hands_log_ns, marks, side="right")
+    return [int(c) for c in counts if c > 0]
 
 
 def _placement(cfg: BridgeConfig, meta: dict[str, Any]) -> BridgeConfig:
@@ -85,8 +81,9 @@ def rerecord(src_path: Path | str, out_path: Path | str, *, hand: str | None = N
                             f"(hand={hand!r}, object={object_name!r}); pass them explicitly")
     if not src.counts.get(TOPIC_HANDS):
         raise RerecordError(f"{src_path}: no {TOPIC_HANDS} messages to replay")
-    payloads = [(m.log_time_ns * 1e-9, m.data) for m in src.messages(TOPIC_HANDS, decode=False)]
-    marks = _mark_indices(src)
+    messages = list(src.messages(TOPIC_HANDS, decode=False))
+    payloads = [(m.log_time_ns * 1e-9, m.data) for m in messages]
+    marks = _mark_indices(src, np.array([m.log_time_ns for m in messages], dtype=np.int64))
     cfg = _placement(load_bridge_config(), src.metadata)
     cfg = dataclasses.replace(cfg, deterministic=True, view_enabled=view)
     port = zkeys.free_tcp_port()

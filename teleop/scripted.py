@@ -33,9 +33,30 @@ from sim.validate import Validator
 from teleop.recorder import SessionRecorder
 from teleop.scene_contacts import contact_records, tip_finger_bodies
 
-__all__ = ["record_scripted_demo"]
+__all__ = ["demonstrable_grasps", "record_scripted_demo"]
 
 log = logging.getLogger(__name__)
+
+
+def demonstrable_grasps(hand: Hand, object_name: str, n: int, *, seed: int = 0,
+                        workers: int = 2, time_budget_s: float = 60.0) -> list[Grasp]:
+    """Grasps worth demonstrating on ``object_name`` resting on the table: FSG's proposals on
+    the hand's manual workspace (table mode, link penetration check; ``n`` asked for) that pass
+    the MuJoCo lift-drop test, best FSG ε first. What the scripted demonstrator performs."""
+    from augment.fsg import generate
+    from augment.object_cloud import object_cloud
+    from augment.workspace import build_workspace
+    from sim.batch import validate_many
+
+    res = generate(hand, object_cloud(load_object(object_name)), build_workspace(hand), n=n,
+                   table=True, link_penetration=True, seed=seed, workers=workers,
+                   time_budget_s=time_budget_s)
+    results = validate_many(hand.name, object_name, [g.grasp for g in res.grasps],
+                            workers=workers)
+    passing = [g.grasp for g, r in zip(res.grasps, results, strict=True) if r.passed]
+    log.info("%s: %d FSG proposals, %d pass lift-drop", object_name, len(res.grasps),
+             len(passing))
+    return passing
 
 
 def record_scripted_demo(hand: Hand, object_name: str, grasp: Grasp, out: Path | str, *,
@@ -65,9 +86,11 @@ def record_scripted_demo(hand: Hand, object_name: str, grasp: Grasp, out: Path |
             "fingers": list(hand.finger_names), "scripted": True,
             "object_pos_m": obj_pos.tolist(), "rig": "scripted"}
     dt = m.opt.timestep
+    stepped = 0
     with SessionRecorder(out, metadata=meta, overwrite=overwrite, start_time_ns=0) as rec:
         def run(seconds: float, q_from: np.ndarray | None = None,
                 q_to: np.ndarray | None = None, rise_m: float = 0.0) -> None:
+            nonlocal stepped
             steps = max(round(seconds / dt), 1)
             start = d.mocap_pos[scene.mocap_id].copy()
             for k in range(steps):
@@ -76,7 +99,8 @@ def record_scripted_demo(hand: Hand, object_name: str, grasp: Grasp, out: Path |
                     scene.set_hand_ctrl((1 - a) * q_from + a * q_to)
                 d.mocap_pos[scene.mocap_id] = start + np.array([0.0, 0.0, rise_m * a])
                 mujoco.mj_step(m, d)
-                if d.time // dt % record_every == 0:
+                stepped += 1
+                if stepped % record_every == 0:
                     t_ns = round(d.time * 1e9)
                     pp, pq = scene.palm_world_pose()
                     op, oq = scene.object_pose()

@@ -181,3 +181,22 @@ def test_watch_mode_augments_finished_sessions_only(tmp_path: Path) -> None:
     finally:
         proc.terminate()
         proc.wait(10)
+
+
+@needs_menagerie
+@needs_ycb
+def test_rerecord_gives_a_raw_session_state_contacts_and_its_marks(tmp_path: Path) -> None:
+    """`dexaug rerecord`: every /hands frame of a raw-input session goes through the bridge
+    (one state and one contact record each, deterministic mode) and its grasp_mark comes back."""
+    from teleop.rerecord import rerecord
+    from teleop.session import open_session
+
+    src = open_session(RAW_SESSION)
+    out = open_session(rerecord(RAW_SESSION, tmp_path / "full.mcap"))
+    n = src.counts["/hands"]
+    assert out.counts["/hands"] == n and out.counts["/state"] == n
+    assert out.counts["/contacts"] == n and not out.truncated
+    assert out.metadata["object"] == src.metadata["object"]
+    marks = [e for _, e in out.events() if e["type"] == "grasp_mark"]
+    assert len(marks) == sum(e["type"] == "grasp_mark" for _, e in src.events()) == 1
+    assert not list(tmp_path.glob(".*.tmp"))   # written through a temporary name
