@@ -22,7 +22,8 @@ from sim.validate import ValidateConfig, ValidationResult, Validator
 _VALIDATORS: dict[tuple[str, str, str | None], Validator] = {}
 
 
-def _validator(hand: str, obj: str, config_path: str | None) -> Validator:
+def cached_validator(hand: str, obj: str, config_path: str | None = None) -> Validator:
+    """The validator of (hand name, object name, config file) in this process, built once."""
     key = (hand, obj, config_path)
     if key not in _VALIDATORS:
         config = ValidateConfig.load(config_path) if config_path else ValidateConfig.load()
@@ -33,7 +34,7 @@ def _validator(hand: str, obj: str, config_path: str | None) -> Validator:
 def _validate_chunk(args: tuple[str, str, str | None, Sequence[Grasp], str]
                     ) -> list[ValidationResult]:
     hand, obj, config_path, grasps, protocol = args
-    v = _validator(hand, obj, config_path)
+    v = cached_validator(hand, obj, config_path)
     return [v.validate(g, protocol) for g in grasps]
 
 
@@ -49,7 +50,7 @@ def validate_many(hand: str, obj: str, grasps: Sequence[Grasp], protocol: str = 
     workers = workers or default_workers()
     cfg = str(config_path) if config_path else None
     if workers == 1 or len(grasps) <= 1:
-        v = _validator(hand, obj, cfg)
+        v = cached_validator(hand, obj, cfg)
         out = []
         for g in grasps:
             out.append(v.validate(g, protocol))

@@ -416,14 +416,22 @@ class Validator:
 
     # ---------------------------------------------------------------------------- protocols
 
-    def validate(self, grasp: Grasp, protocol: str = "lift-drop") -> ValidationResult:
-        """Validate one grasp; see the module docstring and DESIGN §5 for the protocols."""
+    def penetration_m(self, grasp: Grasp, protocol: str = "lift-drop") -> float:
+        """Deepest hand–object penetration (metres, 0 when none) of the grasp placed as
+        :meth:`validate` places it: the check validate() makes before simulating, public so a
+        sampler can drop what would fail it (one collision pass, no simulation)."""
         q = self.hand.check_q(grasp.joints, "grasp joints")
         if q.ndim != 1:
-            raise ValueError("validate() takes one grasp; use sim.batch for many")
+            raise ValueError("one grasp at a time; use sim.batch for many")
         scene = self.scene(protocol)
         self._place(scene, grasp, q)
-        penetration = self._hand_object_contacts(scene).max_penetration_m
+        return self._hand_object_contacts(scene).max_penetration_m
+
+    def validate(self, grasp: Grasp, protocol: str = "lift-drop") -> ValidationResult:
+        """Validate one grasp; see the module docstring and DESIGN §5 for the protocols."""
+        penetration = self.penetration_m(grasp, protocol)
+        q = self.hand.check_q(grasp.joints, "grasp joints")
+        scene = self.scene(protocol)
         result = ValidationResult(protocol=protocol, passed=False, failure=None,
                                   penetration_m=penetration)
         if penetration > self.config.common.max_penetration_m:

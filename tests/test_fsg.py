@@ -145,6 +145,12 @@ def test_outputs_satisfy_their_claims(shadow, can_setup, can_result) -> None:  #
         assert m.volume == pytest.approx(g.volume, rel=1e-9)
     eps = [g.epsilon for g in res.grasps]
     assert eps == sorted(eps, reverse=True)
+    # with the link penetration check, no output penetrates deeper than the validator allows
+    from sim.batch import cached_validator
+
+    validator = cached_validator(shadow.name, cloud.name)
+    deepest = max(validator.penetration_m(g.grasp) for g in res.grasps)
+    assert deepest <= validator.config.common.max_penetration_m, deepest
 
 
 @needs_menagerie
@@ -248,6 +254,15 @@ def test_workspace_of_another_hand(shadow, can_setup) -> None:  # type: ignore[n
     a_ws = build_workspace(allegro)
     with pytest.raises(FsgError, match="allegro_right"):
         generate(shadow, cloud, a_ws, n=1)
+
+
+@needs_menagerie
+@needs_ycb
+def test_link_penetration_needs_a_loadable_object(shadow, can_setup) -> None:  # type: ignore[no-untyped-def]
+    _, ws, cloud = can_setup
+    stray = dataclasses.replace(cloud, name="no_such_object_xyz")
+    with pytest.raises(FsgError, match=r"link penetration.*'no_such_object_xyz' does not load"):
+        generate(shadow, stray, ws, n=1, link_penetration=True)
 
 
 # ------------------------------------------------------------------------------ dataset
