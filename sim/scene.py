@@ -107,6 +107,20 @@ class Scene:
                                    targetbody=target, fovy=45.0)
         return world
 
+    def position_servos(self) -> np.ndarray:
+        """Mask over ``hand_act``: the actuators that are position servos (fixed gain, affine
+        bias: force = kp·(ctrl − q) − kv·q̇), the ones whose stiffness kp holds a pose."""
+        m, acts = self.model, self.hand_act
+        return ((m.actuator_gaintype[acts] == int(mujoco.mjtGain.mjGAIN_FIXED))
+                & (m.actuator_biastype[acts] == int(mujoco.mjtBias.mjBIAS_AFFINE)))
+
+    def scale_servo_stiffness(self, scale: float) -> None:
+        """Multiply the hand's position-servo stiffness kp (N·m/rad or N/m per actuator) by
+        ``scale`` in this scene's model; force limits, damping and the other actuators stay."""
+        acts = self.hand_act[self.position_servos()]
+        self.model.actuator_gainprm[acts, 0] *= scale
+        self.model.actuator_biasprm[acts, 1] *= scale
+
     def _index(self) -> None:
         m = self.model
         self.mocap_id = m.body("hand_target").mocapid[0]
