@@ -703,7 +703,7 @@ def generate(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: WorkspaceClo
         outs = [_worker_run(setup, seed, 0, n, budget)]
     else:
         share = math.ceil(n / workers)
-        pool = persistent_pool(workers, ("augment.fsg",))
+        pool = persistent_pool(workers)
         futs = [pool.submit(_worker_run, setup, seed + k, k, share, budget)
                 for k in range(workers)]
         outs = [f.result() for f in futs]

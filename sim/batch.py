@@ -62,7 +62,7 @@ def validate_many(hand: str, obj: str, grasps: Sequence[Grasp], protocol: str = 
     chunks = [(hand, obj, cfg, list(grasps[i:i + size]), protocol)
               for i in range(0, len(grasps), size)]
     results: list[ValidationResult] = []
-    for part in persistent_pool(workers, ("sim.validate",)).map(_validate_chunk, chunks):
+    for part in persistent_pool(workers).map(_validate_chunk, chunks):
         results.extend(part)
         if progress:
             progress(len(results))

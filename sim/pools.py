@@ -22,9 +22,13 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import get_context
 
-__all__ = ["persistent_pool"]
+__all__ = ["PRELOAD", "persistent_pool"]
 
-_POOLS: dict[tuple[int, tuple[str, ...]], ProcessPoolExecutor] = {}
+#: what the fork server imports before forking workers: the validator and the grasp sampler.
+#: One pool serves both, so the validator scene a worker compiles for FSG's exact penetration
+#: check (1–3 s per hand and object) is the one it validates with next.
+PRELOAD = ("sim.validate", "augment.fsg")
+_POOLS: dict[int, ProcessPoolExecutor] = {}
 #: seconds between a worker's checks that its owner is alive
 _OWNER_POLL_S = 1.0
 
@@ -44,17 +48,17 @@ def _exit_with_owner(owner_pid: int) -> None:
     threading.Thread(target=watch, name="dexaug-owner-watch", daemon=True).start()
 
 
-def persistent_pool(workers: int, preload: tuple[str, ...]) -> ProcessPoolExecutor:
-    """The process-wide pool of ``workers`` processes whose fork server preloads ``preload``
-    (module names), created on first use. A pool whose worker died is replaced."""
-    key = (workers, preload)
+def persistent_pool(workers: int) -> ProcessPoolExecutor:
+    """The process-wide pool of ``workers`` processes (fork server preloading ``PRELOAD``),
+    created on first use. A pool whose worker died is replaced."""
+    key = workers
     pool = _POOLS.get(key)
     if pool is not None and getattr(pool, "_broken", False):
         pool.shutdown(wait=False, cancel_futures=True)
         pool = None
     if pool is None:
         ctx = get_context("forkserver")
-        ctx.set_forkserver_preload(list(preload))
+        ctx.set_forkserver_preload(list(PRELOAD))
         pool = _POOLS[key] = ProcessPoolExecutor(workers, mp_context=ctx,
                                                  initializer=_exit_with_owner,
                                                  initargs=(os.getpid(),))
