@@ -114,11 +114,16 @@ def test_quest3_replay_reaches_the_bridge_and_the_view_comes_back(chromium, capt
         deadline = time.perf_counter() + 5
         while len(tap.frames) < n_sent and time.perf_counter() < deadline:
             time.sleep(0.05)
+        img_w = 0
         if bridge.view_active:
             _wait(page, "window.dexaug.stats.viewsReceived >= 10", 10, "too few view frames")
+            # read the width in the same poll that finds it decoded: every new frame replaces
+            # the <img> source, and until it decodes the width reads 0
+            img_w = page.wait_for_function(
+                "() => document.getElementById('view').naturalWidth || false",
+                timeout=10_000).json_value()
         stats = _js(page, "window.dexaug.stats")
         log = _js(page, "window.dexaug.emulation.replay.log")
-        img_w = _js(page, "document.getElementById('view').naturalWidth")
         bstatus = bridge.status()
         istats = ingest.stats()
     finally:
