@@ -39,7 +39,8 @@ from sim.transforms import pose_inv, pose_mul
 from teleop.schemas import TOPIC_CONTACTS, TOPIC_STATE
 from teleop.session import Session, SessionError, open_session
 
-__all__ = ["Demo", "DemoError", "DemoParams", "extract_demos", "load_demo", "resolve_demo", "save_demo"]
+__all__ = ["Demo", "DemoError", "DemoParams", "demo_to_json", "extract_demos", "load_demo",
+           "resolve_demo", "save_demo"]
 
 DEMO_FORMAT = "dexaug-demo-1"
 
@@ -270,16 +271,20 @@ def _why_not(track: _Track, n_touch: np.ndarray, ok: np.ndarray, lead: str,
             f"less than {p.min_duration_s} s, and no grasp_mark event was usable")
 
 
-def save_demo(path: Path | str, demo: Demo) -> None:
-    """Write ``demo`` as JSON (atomically): small, diffable, committable."""
-    doc = {"format": DEMO_FORMAT, "id": demo.id, "hand": demo.hand, "object": demo.object,
+def demo_to_json(demo: Demo) -> dict[str, Any]:
+    """``demo`` as the plain data :func:`save_demo` writes (lists, numbers, strings)."""
+    return {"format": DEMO_FORMAT, "id": demo.id, "hand": demo.hand, "object": demo.object,
            "joints_rad": demo.joints.tolist(), "palm_pos_m": demo.palm_pos_m.tolist(),
            "palm_quat_wxyz": demo.palm_quat_wxyz.tolist(),
            "tip_contacts_m": {k: v.tolist() for k, v in demo.tip_contacts.items()},
            "contact_points_obj_m": {k: v.tolist() for k, v in demo.contact_points_obj.items()},
            "source": str(demo.source), "time_s": demo.time_s, "how": demo.how,
            "duration_s": demo.duration_s, "fingers": list(demo.fingers)}
-    write_bytes_atomic(path, (json.dumps(doc, indent=1) + "\n").encode())
+
+
+def save_demo(path: Path | str, demo: Demo) -> None:
+    """Write ``demo`` as JSON (atomically): small, diffable, committable."""
+    write_bytes_atomic(path, (json.dumps(demo_to_json(demo), indent=1) + "\n").encode())
 
 
 def load_demo(path: Path | str) -> Demo:

@@ -4,7 +4,8 @@ demo → demonstration-centred AutoWS clouds → FSG → MuJoCo validation of ev
 dataset (passing grasps in the main table, rejected ones with their failure in the side table)
 → report. Each demo gets its own folder ``<out>/<demo id>/`` holding ``grasps.h5``,
 ``report.html`` with its images, and ``summary.json``, which is written last: a folder with a
-summary made under the same options is finished, and re-running skips it (resumable); a run
+summary made from the same demo, options and configs (:func:`run_key`) is finished, and
+re-running skips it (resumable); a run
 interrupted before the summary leaves only complete files (every write is atomic), and the next
 run redoes that demo.
 
@@ -29,14 +30,16 @@ from typing import Any
 import numpy as np
 
 from augment import dataset
-from augment.demo import Demo, extract_demos
-from augment.fsg import generate
+from augment.demo import Demo, demo_to_json, extract_demos
+from augment.fsg import AUGMENT_TOML, generate
 from augment.object_cloud import object_cloud
 from augment.workspace import build_workspace
 from sim.batch import default_workers, validate_many
 from sim.hand import Hand
+from sim.hand_config import HANDS_DIR
 from sim.io import write_bytes_atomic
 from sim.objects import load_object
+from sim.validate import VALIDATE_TOML
 
 __all__ = ["AugmentOptions", "DemoSummary", "augment_demo", "augment_session", "demo_dir",
            "demo_fingers", "finished"]
@@ -62,12 +65,29 @@ class AugmentOptions:
     time_budget_s: float = 120.0
     gallery: int = 6
 
-    def key(self) -> str:
-        """Hash of the options that change results (not ``workers`` or ``gallery``)."""
-        d = asdict(self)
-        d.pop("workers")
-        d.pop("gallery")
-        return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
+
+#: the configuration files an augmentation's results depend on (besides the hand's own)
+RESULT_CONFIGS = (AUGMENT_TOML, VALIDATE_TOML)
+
+
+def _hand_config_path(hand: str) -> Path:
+    return Path(hand) if hand.endswith(".toml") else HANDS_DIR / f"{hand}.toml"
+
+
+def run_key(demo: Demo, opts: AugmentOptions) -> str:
+    """Hash of everything that changes an augmentation's results: the options (not
+    ``workers`` or ``gallery``), the demo itself, and the texts of the configuration files the
+    stages read (AutoWS and FSG parameters, the validator's, the hand's). A re-run skips a demo
+    only when this matches, so a re-recorded demo or an edited config is redone, not served
+    stale."""
+    options = asdict(opts)
+    options.pop("workers")
+    options.pop("gallery")
+    digest = hashlib.sha256(json.dumps({"options": options, "demo": demo_to_json(demo)},
+                                       sort_keys=True).encode())
+    for path in (*RESULT_CONFIGS, _hand_config_path(demo.hand)):
+        digest.update(path.read_bytes() if path.is_file() else b"")
+    return digest.hexdigest()[:16]
 
 
 @dataclass
@@ -79,7 +99,7 @@ class DemoSummary:
     hand: str
     object: str
     source: str
-    options_key: str
+    run_key: str
     requested: int
     generated: int
     passed: int
@@ -107,9 +127,10 @@ def demo_dir(out_root: Path | str, demo: Demo) -> Path:
     return Path(out_root) / re.sub(r"[^A-Za-z0-9_.@-]+", "_", demo.id)
 
 
-def finished(folder: Path | str, opts: AugmentOptions) -> DemoSummary | None:
-    """The summary of ``folder`` when it is finished under ``opts`` (what ``augment_demo``
-    would skip), else None: lets a caller (the dashboard) show results without re-running."""
+def finished(folder: Path | str, demo: Demo, opts: AugmentOptions) -> DemoSummary | None:
+    """The summary of ``folder`` when it holds ``demo`` finished under ``opts`` and today's
+    configs (:func:`run_key`; what ``augment_demo`` would skip), else None: lets a caller (the
+    dashboard) show results without re-running."""
     path = Path(folder) / "summary.json"
     if not path.is_file():
         return None
@@ -119,7 +140,7 @@ def finished(folder: Path | str, opts: AugmentOptions) -> DemoSummary | None:
     except (OSError, ValueError, TypeError):
         log.warning("%s is unreadable; redoing that demo", path)
         return None
-    if summary.options_key != opts.key() or not Path(summary.dataset).is_file():
+    if summary.run_key != run_key(demo, opts) or not Path(summary.dataset).is_file():
         return None
     summary.skipped = True
     return summary
@@ -128,7 +149,7 @@ def finished(folder: Path | str, opts: AugmentOptions) -> DemoSummary | None:
 def augment_demo(demo: Demo, out_root: Path | str, opts: AugmentOptions | None = None, *,
                  progress: Progress | None = None, force: bool = False) -> DemoSummary:
     """Augment one demo into ``demo_dir(out_root, demo)`` (module docstring); a folder already
-    finished with the same options is returned as is unless ``force``.
+    finished with the same inputs (:func:`run_key`) is returned as is unless ``force``.
 
     Raises:
         DexaugError subclasses: the hand is not installed, the object cannot be loaded, bad
@@ -136,10 +157,12 @@ def augment_demo(demo: Demo, out_root: Path | str, opts: AugmentOptions | None =
     """
     opts = opts or AugmentOptions()
     folder = demo_dir(out_root, demo)
-    if not force and (done := finished(folder, opts)) is not None:
+    if not force and (done := finished(folder, demo, opts)) is not None:
         log.info("%s: already augmented (%s), skipping", demo.id, folder)
         return done
     tick = progress or (lambda stage, done, total: None)
+    key = run_key(demo, opts)   # the inputs as they are now, before any stage reads them
+    configs = {f"config:{path.name}": path.read_text() for path in RESULT_CONFIGS}
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     hand = Hand.load(demo.hand)
@@ -168,7 +191,7 @@ def augment_demo(demo: Demo, out_root: Path | str, opts: AugmentOptions | None =
     timings["validate"] = time.perf_counter() - t0
 
     provenance = {"hand": hand.name, "demo_source": str(demo.source), "seed": opts.seed,
-                  "options": json.dumps(asdict(opts)), "options_key": opts.key(),
+                  "options": json.dumps(asdict(opts)), "run_key": key, **configs,
                   "protocol": opts.validate or "none", "fsg_stopped": res.stopped}
     table = dataset.from_fsg(res.grasps, hand.joint_names, hand.finger_names, results,
                              demo_id=demo.id, attrs=provenance,
@@ -187,7 +210,7 @@ def augment_demo(demo: Demo, out_root: Path | str, opts: AugmentOptions | None =
                "displacement_mm_mean": 1e3 * _mean(kept["displacement_m"])}
     summary = DemoSummary(
         demo_id=demo.id, hand=hand.name, object=obj.name, source=str(demo.source),
-        options_key=opts.key(), requested=opts.n, generated=len(res.grasps),
+        run_key=key, requested=opts.n, generated=len(res.grasps),
         passed=len(kept) if results is not None else 0, failures=dict(failures),
         fsg_stopped=res.stopped, timings_s=timings, metrics=metrics, dataset=str(data_path),
         report=None)

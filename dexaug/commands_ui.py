@@ -40,7 +40,7 @@ def ui_cmd(args: argparse.Namespace, console: Console) -> int:
     Lists every session of --sessions with its demos (thumbnail, object, fingers, time) or the
     reason it has none; "Augment" runs demo → AutoWS → FSG → validation → dataset + report in
     the background (one at a time), shows the progress, then the numbers and the report.
-    Demos already augmented with the same options show their results directly. Ctrl-C stops.
+    Demos already augmented with the same inputs show their results directly. Ctrl-C stops.
     """
     from dexaug.dashboard import Dashboard, DashboardConfig
 

@@ -53,6 +53,7 @@ from sim.scene import HAND_PREFIX, OBJECT_HOME, PhysicsOptions, Scene
 from sim.transforms import pose_inv, pose_mul, quat_angle, rotate
 
 PROTOCOLS = ("lift-drop", "six-dir")
+VALIDATE_TOML = CONFIG_DIR / "validate.toml"
 GRAVITY_MPS2 = 9.81
 # relative damping of the pseudo-inverses: the contact Jacobian's (m², as J Jᵀ) and the joint
 # stiffness's (times its largest eigenvalue; only makes singular directions harmless)
@@ -121,7 +122,7 @@ class ValidateConfig:
     six_dir: SixDirParams
 
     @classmethod
-    def load(cls, path: Path | str = CONFIG_DIR / "validate.toml") -> ValidateConfig:
+    def load(cls, path: Path | str = VALIDATE_TOML) -> ValidateConfig:
         root = load_toml(path)
         root.reject_unknown({"common", "lift_drop", "six_dir"})
         c = root.section("common")

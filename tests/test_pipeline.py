@@ -138,6 +138,8 @@ def test_session_to_validated_dataset_and_report(shadow, tmp_path: Path) -> None
     assert int(shown["grasps-passed-validation"]) == len(t)
     assert int(shown["grasps-generated-fsg"]) == len(t) + len(t.rejected)
     assert (Path(s.report).parent / "palm_cloud.png").stat().st_size > 1000
+    from sim.validate import VALIDATE_TOML
+    assert t.attrs["config:validate.toml"] == VALIDATE_TOML.read_text()   # provenance
     again = augment_session(CAN_SESSION, tmp_path, opts)
     assert again[0].skipped and again[0].passed == s.passed
     # an interrupted run (no summary yet) is redone, never trusted
@@ -145,6 +147,30 @@ def test_session_to_validated_dataset_and_report(shadow, tmp_path: Path) -> None
     shutil.copy(s.dataset, tmp_path / "keep.h5")
     redo = augment_session(CAN_SESSION, tmp_path, AugmentOptions(n=10, workers=2, gallery=0))
     assert not redo[0].skipped
+
+
+def test_run_key_follows_every_input(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A finished demo is skipped only when options, demo and configs are all unchanged."""
+    import dataclasses
+
+    from augment import pipeline
+    from augment.pipeline import AugmentOptions, run_key
+
+    demo = load_demo(REPO_ROOT / "recordings" / "demos" / "005_tomato_soup_can.json")
+    configs = []
+    for path in pipeline.RESULT_CONFIGS:
+        shutil.copy(path, tmp_path / path.name)
+        configs.append(tmp_path / path.name)
+    monkeypatch.setattr(pipeline, "RESULT_CONFIGS", tuple(configs))
+    opts = AugmentOptions(n=50, workers=1, gallery=0)
+    key = run_key(demo, opts)
+    assert run_key(demo, dataclasses.replace(opts, workers=2, gallery=3)) == key
+    assert run_key(demo, dataclasses.replace(opts, n=51)) != key
+    moved = dataclasses.replace(demo, joints=demo.joints + 1e-3)
+    assert run_key(moved, opts) != key
+    configs[1].write_text(configs[1].read_text().replace("servo_kp_scale = 5.0",
+                                                         "servo_kp_scale = 1.0"))
+    assert run_key(demo, opts) != key
 
 
 @needs_menagerie

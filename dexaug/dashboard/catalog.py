@@ -181,7 +181,7 @@ class Catalog:
 
     def result(self, entry: DemoEntry) -> dict[str, Any] | None:
         """The finished result of ``entry`` under the dashboard's options, or None."""
-        done = finished(demo_dir(self.out_root, entry.demo), self.opts)
+        done = finished(demo_dir(self.out_root, entry.demo), entry.demo, self.opts)
         if done is None:
             return None
         return result_view({**done.to_json(), "skipped": True}, self.out_root)
