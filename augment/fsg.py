@@ -685,9 +685,11 @@ def generate(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: WorkspaceClo
         active = active[:fingers]
     if len(active) < 2:
         raise FsgError(f"FSG needs at least 2 fingers, got {list(active)}")
-    if link_penetration:
+    if link_penetration:   # the workers place grasps in the validator's scene of this object
+        from sim.objects import load_object
+
         try:
-            cached_validator(hand.name, cloud.name)
+            load_object(cloud.name)
         except DexaugError as exc:
             raise FsgError(f"the link penetration check places grasps in the validator's scene, "
                            f"but object {cloud.name!r} does not load: {exc}") from exc
