@@ -694,7 +694,8 @@ def generate(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: WorkspaceClo
             raise FsgError(f"the link penetration check places grasps in the validator's scene, "
                            f"but object {cloud.name!r} does not load: {exc}") from exc
     palm = hand.config.palm
-    setup = _Setup(hand=hand.name, cloud=cloud, workspace=workspace, part_idx=part_idx, fingers=tuple(active),
+    setup = _Setup(hand=hand.name, cloud=cloud, workspace=workspace, part_idx=part_idx,
+                   fingers=tuple(active),
                    nq=hand.nq, finger_qadr={f: np.asarray(hand.finger_qadr[f]) for f in active},
                    palm_center=np.asarray(palm.box_center, float),
                    palm_half=np.asarray(palm.box_half_extents, float), table=table,

@@ -55,7 +55,8 @@ TRIAL_SEED = 1000
 
 def trial_pass_rate(hand: Hand, demo: Demo, n: int) -> float:
     """Fraction of ``n`` demo-seeded FSG grasps (link penetration check) that pass lift-drop."""
-    res = generate(hand, object_cloud(load_object(demo.object)), build_workspace(hand, demo=demo.seed()), n=n,
+    cloud = object_cloud(load_object(demo.object))
+    res = generate(hand, cloud, build_workspace(hand, demo=demo.seed()), n=n,
                    finger_names=demo_fingers(demo), link_penetration=True, seed=TRIAL_SEED,
                    workers=2, time_budget_s=60.0)
     if not res.grasps:
@@ -70,7 +71,8 @@ def main() -> None:
     ap.add_argument("--objects", nargs="*", default=list(OBJECTS))
     ap.add_argument("--candidates", type=int, default=60, help="FSG grasps proposed per object")
     ap.add_argument("--tries", type=int, default=8, help="passing grasps tried per object")
-    ap.add_argument("--trial", type=int, default=20, help="grasps of each demo's trial augmentation")
+    ap.add_argument("--trial", type=int, default=20,
+                    help="grasps of each demo's trial augmentation")
     args = ap.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     for noisy in ("teleop", "augment.fsg", "sim"):

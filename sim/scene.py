@@ -122,7 +122,8 @@ class Scene:
 
     def scale_servo_stiffness(self, scale: float) -> None:
         """Multiply the hand's position-servo stiffness kp (N·m/rad or N/m per actuator) by
-        ``scale`` in this scene's model; force limits, damping and the other actuators stay."""
+        ``scale`` in this scene's model (it multiplies: once per scene); force limits, damping
+        and the other actuators stay."""
         acts = self.hand_act[self.position_servos()]
         self.model.actuator_gainprm[acts, 0] *= scale
         self.model.actuator_biasprm[acts, 1] *= scale
