@@ -36,7 +36,7 @@ from augment.object_cloud import object_cloud
 from augment.workspace import build_workspace
 from sim.batch import default_workers, validate_many
 from sim.hand import Hand
-from sim.hand_config import HANDS_DIR
+from sim.hand_config import hand_config_path
 from sim.io import write_bytes_atomic
 from sim.objects import load_object
 from sim.validate import VALIDATE_TOML
@@ -70,24 +70,25 @@ class AugmentOptions:
 RESULT_CONFIGS = (AUGMENT_TOML, VALIDATE_TOML)
 
 
-def _hand_config_path(hand: str) -> Path:
-    return Path(hand) if hand.endswith(".toml") else HANDS_DIR / f"{hand}.toml"
+def result_configs(demo: Demo) -> dict[str, str]:
+    """``"config:<file name>"`` → text of each configuration file the stages read for ``demo``
+    (AutoWS and FSG parameters, the validator's, the hand's; "" when absent): read once per
+    run, hashed into :func:`run_key` and stored in the dataset as provenance."""
+    paths = (*RESULT_CONFIGS, hand_config_path(demo.hand))
+    return {f"config:{p.name}": p.read_text() if p.is_file() else "" for p in paths}
 
 
-def run_key(demo: Demo, opts: AugmentOptions) -> str:
+def run_key(demo: Demo, opts: AugmentOptions, configs: dict[str, str] | None = None) -> str:
     """Hash of everything that changes an augmentation's results: the options (not
-    ``workers`` or ``gallery``), the demo itself, and the texts of the configuration files the
-    stages read (AutoWS and FSG parameters, the validator's, the hand's). A re-run skips a demo
-    only when this matches, so a re-recorded demo or an edited config is redone, not served
-    stale."""
+    ``workers`` or ``gallery``), the demo itself, and the configuration texts
+    (:func:`result_configs`, read now unless given). A re-run skips a demo only when this
+    matches, so a re-recorded demo or an edited config is redone, not served stale."""
     options = asdict(opts)
     options.pop("workers")
     options.pop("gallery")
-    digest = hashlib.sha256(json.dumps({"options": options, "demo": demo_to_json(demo)},
-                                       sort_keys=True).encode())
-    for path in (*RESULT_CONFIGS, _hand_config_path(demo.hand)):
-        digest.update(path.read_bytes() if path.is_file() else b"")
-    return digest.hexdigest()[:16]
+    doc = {"options": options, "demo": demo_to_json(demo),
+           "configs": configs if configs is not None else result_configs(demo)}
+    return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()[:16]
 
 
 @dataclass
@@ -161,8 +162,8 @@ def augment_demo(demo: Demo, out_root: Path | str, opts: AugmentOptions | None =
         log.info("%s: already augmented (%s), skipping", demo.id, folder)
         return done
     tick = progress or (lambda stage, done, total: None)
-    key = run_key(demo, opts)   # the inputs as they are now, before any stage reads them
-    configs = {f"config:{path.name}": path.read_text() for path in RESULT_CONFIGS}
+    configs = result_configs(demo)   # the inputs as they are now, before any stage reads them
+    key = run_key(demo, opts, configs)
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     hand = Hand.load(demo.hand)

@@ -137,14 +137,18 @@ def _finger(sec: Section) -> FingerConfig:
         tip_site_pos=np.array(sec.floats("tip_site_pos", 3)), ranges_rad=ranges)
 
 
+def hand_config_path(name_or_path: str | Path) -> Path:
+    """The TOML file of a hand given by name (``configs/hands/<name>.toml``) or by path."""
+    path = Path(name_or_path)
+    return path if path.suffix == ".toml" else HANDS_DIR / f"{name_or_path}.toml"
+
+
 def load_hand_config(name_or_path: str | Path) -> HandConfig:
     """Load ``configs/hands/<name>.toml`` (or a TOML path) and check it is self-consistent."""
-    path = Path(name_or_path)
-    if path.suffix != ".toml":
-        path = HANDS_DIR / f"{name_or_path}.toml"
-        if not path.is_file():
-            known = sorted(p.stem for p in HANDS_DIR.glob("*.toml"))
-            raise ConfigError(f"unknown hand {name_or_path!r}: no {path}; known hands: {known}")
+    path = hand_config_path(name_or_path)
+    if Path(name_or_path).suffix != ".toml" and not path.is_file():
+        known = sorted(p.stem for p in HANDS_DIR.glob("*.toml"))
+        raise ConfigError(f"unknown hand {name_or_path!r}: no {path}; known hands: {known}")
     root = load_toml(path)
     root.reject_unknown({"model", "palm", "fingers", "grasp"})
     model = root.section("model")
