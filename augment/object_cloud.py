@@ -36,11 +36,11 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
-from augment.sampling import poisson_disk_sample
+from augment.geometry.sampling import poisson_disk_sample
 from sim.errors import DexaugError
 from sim.io import atomic_path
-from sim.objects import ObjectAsset
 from sim.paths import CONFIG_DIR, cache_dir
+from sim.world.objects import ObjectAsset
 
 __all__ = ["AFFORDANCE_DIR", "ObjectCloud", "ObjectCloudError", "affordance_path",
            "normal_variation", "object_cloud"]

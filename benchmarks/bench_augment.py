@@ -17,9 +17,10 @@ import logging
 import tempfile
 from pathlib import Path
 
-from augment.pipeline import AugmentOptions, augment_session
-from sim.batch import default_workers
+from dexaug.pipeline.options import AugmentOptions
+from dexaug.pipeline.run import augment_session
 from sim.paths import REPO_ROOT
+from sim.validate.batch import default_workers
 
 
 def main() -> None:

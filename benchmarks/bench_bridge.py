@@ -28,8 +28,8 @@ CAPTURE = SHARED_ASSETS / "handdata" / "quest3_webxr" / "cap.min.js"
 
 def _bridge_proc(port: int, rig: str, view: bool, seconds: float, ready: mp.Event) -> None:
     os.environ.setdefault("MUJOCO_GL", "egl")
-    from teleop.bridge import Bridge, load_bridge_config
-    from teleop.webxr import iwer_hand_frames, load_iwer_capture
+    from teleop.bridge.bridge import Bridge, load_bridge_config
+    from teleop.input.webxr import iwer_hand_frames, load_iwer_capture
     frames = iwer_hand_frames(load_iwer_capture(CAPTURE))
     cfg = dataclasses.replace(load_bridge_config(), view_enabled=view, view_rate_hz=30.0)
     with Bridge("shadow_right", None, rig, cfg, listen_port=port,
@@ -48,8 +48,8 @@ def main() -> None:
     args = ap.parse_args()
 
     from teleop import keys
+    from teleop.input.webxr import iwer_hand_frames, load_iwer_capture
     from teleop.messages import encode
-    from teleop.webxr import iwer_hand_frames, load_iwer_capture
 
     frames = [f for f in iwer_hand_frames(load_iwer_capture(CAPTURE)) if f.right is not None]
     port, rig = keys.free_tcp_port(), "bench"

@@ -28,16 +28,16 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numpy as np  # noqa: E402
 
-from sim.hand import Hand  # noqa: E402
+from sim.hand.model import Hand  # noqa: E402
 from sim.paths import SHARED_ASSETS  # noqa: E402
+from teleop.input.webxr import iwer_hand_frames, load_iwer_capture  # noqa: E402
 from teleop.messages import JOINT_INDEX  # noqa: E402
-from teleop.retarget import (  # noqa: E402
+from teleop.retarget.retargeter import (  # noqa: E402
     Retargeter,
     RetargetTrace,
     load_retarget_config,
     retarget_frames,
 )
-from teleop.webxr import iwer_hand_frames, load_iwer_capture  # noqa: E402
 
 CAPTURE = SHARED_ASSETS / "handdata" / "quest3_webxr" / "cap.min.js"
 

@@ -21,9 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from sim.batch import default_workers, validate_many
 from sim.grasp import Grasp
-from sim.hand import Hand
+from sim.hand.model import Hand
+from sim.validate.batch import default_workers, validate_many
 
 OBJECTS = ["004_sugar_box", "005_tomato_soup_can", "043_phillips_screwdriver", "062_dice"]
 
@@ -31,15 +31,15 @@ OBJECTS = ["004_sugar_box", "005_tomato_soup_can", "043_phillips_screwdriver", "
 def fsg_grasps(hand: Hand, objects: list[str], n: int, seed: int, budget_s: float,
                workers: int) -> dict[str, list[Grasp]]:
     """FSG grasps per object on the manual (demo-free) workspace."""
-    from augment.fsg import generate
+    from augment.autows.workspace import build_workspace
     from augment.object_cloud import object_cloud
-    from augment.workspace import build_workspace
-    from sim.objects import load_object
+    from dexaug.pipeline.run import generate_grasps
+    from sim.world.objects import load_object
 
     workspace = build_workspace(hand)
     out = {}
     for name in objects:
-        res = generate(hand, object_cloud(load_object(name)), workspace, n=n, seed=seed,
+        res = generate_grasps(hand, object_cloud(load_object(name)), workspace, n=n, seed=seed,
                        time_budget_s=budget_s, workers=workers, link_penetration=True)
         out[name] = [g.grasp for g in res.grasps]
     return out

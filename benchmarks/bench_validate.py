@@ -15,12 +15,12 @@ import time
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from sim.batch import validate_many
 from sim.grasp import Grasp
-from sim.hand import Hand
-from sim.objects import load_object
-from sim.reference_grasps import load_reference_grasps
-from sim.validate import Validator
+from sim.hand.model import Hand
+from sim.hand.reference_grasps import load_reference_grasps
+from sim.validate.batch import validate_many
+from sim.validate.validator import Validator
+from sim.world.objects import load_object
 
 
 def perturbed(hand: Hand, base: list[Grasp], n: int, seed: int) -> list[Grasp]:
@@ -71,7 +71,7 @@ def main() -> None:
                 steady = (len(grasps) - 1) / max(stamps[-1] - stamps[0], 1e-9)
                 passed = sum(r.passed for r in results)
                 print(f"| {obj} | {protocol} | {workers} | {len(grasps)} | {passed} | "
-                      f"{steady:.1f} | {steady / workers:.1f} | sim.batch steady state "
+                      f"{steady:.1f} | {steady / workers:.1f} | sim.validate.batch steady state "
                       f"({len(grasps) / total:.1f}/s incl. {stamps[0] - start:.1f} s start-up) |",
                       flush=True)
 

@@ -36,7 +36,7 @@ def _bridge_proc(zport: int, rig: str, view: bool, seconds: float, ready: mp.Eve
     import dataclasses
     import os
     os.environ.setdefault("MUJOCO_GL", "egl")
-    from teleop.bridge import Bridge, load_bridge_config
+    from teleop.bridge.bridge import Bridge, load_bridge_config
     cfg = dataclasses.replace(load_bridge_config(), view_enabled=view)
     with Bridge("shadow_right", None, rig, cfg, connect_ports=(zport,)) as bridge:
         print(f"bridge: view {'on' if bridge.view_active else 'off'}", flush=True)
@@ -58,8 +58,8 @@ def main() -> None:
     from playwright.sync_api import sync_playwright
 
     from teleop import keys
+    from teleop.input.web_ingest import WebIngest, WebIngestConfig
     from teleop.messages import decode
-    from teleop.web_ingest import WebIngest, WebIngestConfig
 
     rig, zport = "benchweb", keys.free_tcp_port()
     ingest = WebIngest(rig, WebIngestConfig(host="127.0.0.1", port=0, dev_static={

@@ -28,15 +28,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numpy as np  # noqa: E402
 
-from augment.fingertip import clear_caches, hand_fingertip_faces  # noqa: E402
-from augment.workspace import (  # noqa: E402
+from augment.autows.fingertip import clear_caches, hand_fingertip_faces  # noqa: E402
+from augment.autows.workspace import (  # noqa: E402
     DemoSeed,
     WorkspaceCloud,
     build_workspace,
     cache_path,
     load_autows_params,
 )
-from sim.hand import Hand  # noqa: E402
+from sim.hand.model import Hand  # noqa: E402
 
 HANDS = ("shadow_right", "allegro_right", "robotiq_2f85")
 

@@ -33,7 +33,7 @@ from sim.config import load_toml
 from sim.paths import CONFIG_DIR, REPO_ROOT
 
 if TYPE_CHECKING:
-    from augment.fsg import FsgGrasp
+    from augment.fsg.sampler import FsgGrasp
 
 OBJECTS = ("004_sugar_box", "005_tomato_soup_can", "024_bowl", "043_phillips_screwdriver",
            "062_dice")
@@ -91,14 +91,13 @@ def measure(objects: list[str], methods: list[str], workspaces: list[str], *, n:
             budget_s: float, workers: int, seed: int = 0, six_dir: bool = True,
             on_row: Callable[[Row], None] | None = None) -> list[Row]:
     """Measure every (object, workspace, method) row; see the module docstring."""
-    from augment.demo import load_demo
-    from augment.fsg import generate
+    from augment.autows.workspace import DemoSeed, build_workspace
     from augment.object_cloud import object_cloud
-    from augment.pipeline import demo_fingers
-    from augment.workspace import build_workspace
-    from sim.batch import validate_many
-    from sim.hand import Hand
-    from sim.objects import load_object
+    from dexaug.pipeline.run import demo_fingers, generate_grasps
+    from sim.demo import load_demo
+    from sim.hand.model import Hand
+    from sim.validate.batch import validate_many
+    from sim.world.objects import load_object
 
     hand = Hand.load("shadow_right")
     finger_joints = {j for f in hand.config.fingers for j in f.joints}
@@ -114,10 +113,10 @@ def measure(objects: list[str], methods: list[str], workspaces: list[str], *, n:
                 if not path.is_file():
                     continue
                 demo = load_demo(path)
-            ws = build_workspace(hand, demo=demo.seed()) if demo else manual
+            ws = build_workspace(hand, demo=DemoSeed.from_demo(demo)) if demo else manual
             for method in methods:
                 t0 = time.perf_counter()
-                res = generate(hand, cloud, ws, n=n, seed=seed, time_budget_s=budget_s,
+                res = generate_grasps(hand, cloud, ws, n=n, seed=seed, time_budget_s=budget_s,
                                workers=workers, finger_names=demo_fingers(demo) if demo else None,
                                **VARIANTS[method])  # type: ignore[arg-type]
                 wall = time.perf_counter() - t0

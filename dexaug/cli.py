@@ -11,28 +11,15 @@ import logging
 import signal
 import sys
 import threading
-from collections.abc import Callable
 
 from rich.console import Console
 
+from dexaug.commands.registry import COMMANDS
 from sim.errors import DexaugError
-
-Handler = Callable[[argparse.Namespace, Console], int]
-_COMMANDS: dict[str, tuple[Callable[[argparse.ArgumentParser], None], Handler]] = {}
-
-
-def command(name: str, setup: Callable[[argparse.ArgumentParser], None]) -> Callable[[Handler], Handler]:
-    """Register a subcommand: ``setup`` adds its arguments, the decorated function runs it."""
-
-    def register(fn: Handler) -> Handler:
-        _COMMANDS[name] = (setup, fn)
-        return fn
-
-    return register
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from dexaug import commands, commands_augment, commands_teleop, commands_ui  # noqa: F401  (registers them)
+    from dexaug.commands import augment, core, stream, ui  # noqa: F401  (registers them)
 
     parser = argparse.ArgumentParser(
         prog="dexaug", description="Teleoperation-to-dataset system for dexterous robot hands: "
@@ -40,7 +27,7 @@ def build_parser() -> argparse.ArgumentParser:
         "validate every grasp in MuJoCo.")
     parser.add_argument("-v", "--verbose", action="store_true", help="debug logging")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for name, (setup, fn) in _COMMANDS.items():
+    for name, (setup, fn) in COMMANDS.items():
         doc = (fn.__doc__ or "").strip()
         p = sub.add_parser(name, help=doc.splitlines()[0] if doc else None, description=doc,
                            formatter_class=argparse.RawDescriptionHelpFormatter)

@@ -6,9 +6,9 @@ How a demonstration is made, with dexaug's own tools only (no human, no shared r
    link penetration check) proposes grasps of the object resting on the table; each is
    validated by the MuJoCo lift-and-drop test, and the passing ones are the candidates.
 2. **Performed and recorded.** Each candidate is performed as a scripted demonstration in the
-   bridge's scene (``teleop.scripted``: pregrasp → close → hold → lift → hold on the table,
+   bridge's scene (``teleop.synthetic.scripted``: pregrasp → close → hold → lift → hold on the table,
    gravity on) and recorded in the bridge's session format.
-3. **Kept when it is a demo that augments well.** ``augment.demo.extract_demos`` must find the
+3. **Kept when it is a demo that augments well.** ``teleop.record.demos.extract_demos`` must find the
    grasp in the recording (at least two fingertips, the thumb among them, in stable contact).
    Each demo is then tried as a user would: a small augmentation (``--trial`` grasps of
    demo-seeded FSG with the link penetration check, on a seed of its own, not the benchmarks'),
@@ -20,7 +20,7 @@ How a demonstration is made, with dexaug's own tools only (no human, no shared r
    at 50 % (n = 200), a three-finger one at 77 % (n = 60)), and an operator would re-record a
    demo whose augmentations drop the object.
 
-The synthetic operator (``teleop.synth``) through the bridge was tried first and did not yield
+The synthetic operator (``teleop.synthetic.synth``) through the bridge was tried first and did not yield
 demos: its retargeted precision grasps knock light objects over or stop a few millimetres short.
 
 Run: ``.venv/bin/python scripts/make_demo_sessions.py [--objects ...]`` (about a minute each).
@@ -34,17 +34,18 @@ import shutil
 import tempfile
 from pathlib import Path
 
-from augment.demo import Demo, DemoError, extract_demos, save_demo
-from augment.fsg import generate
+from augment.autows.workspace import DemoSeed, build_workspace
 from augment.object_cloud import object_cloud
-from augment.pipeline import demo_fingers
-from augment.workspace import build_workspace
-from sim.batch import validate_many
-from sim.hand import Hand
+from dexaug.pipeline.run import demo_fingers, generate_grasps
+from dexaug.pipeline.scripted_demos import demonstrable_grasps
+from sim.demo import Demo, DemoError, save_demo
+from sim.hand.model import Hand
 from sim.io import atomic_path
-from sim.objects import load_object
 from sim.paths import REPO_ROOT, ensure_menagerie_root
-from teleop.scripted import demonstrable_grasps, record_scripted_demo
+from sim.validate.batch import validate_many
+from sim.world.objects import load_object
+from teleop.record.demos import extract_demos
+from teleop.synthetic.scripted import record_scripted_demo
 
 OBJECTS = ("004_sugar_box", "005_tomato_soup_can", "024_bowl", "043_phillips_screwdriver",
            "062_dice")
@@ -56,7 +57,7 @@ TRIAL_SEED = 1000
 def trial_pass_rate(hand: Hand, demo: Demo, n: int) -> float:
     """Fraction of ``n`` demo-seeded FSG grasps (link penetration check) that pass lift-drop."""
     cloud = object_cloud(load_object(demo.object))
-    res = generate(hand, cloud, build_workspace(hand, demo=demo.seed()), n=n,
+    res = generate_grasps(hand, cloud, build_workspace(hand, demo=DemoSeed.from_demo(demo)), n=n,
                    finger_names=demo_fingers(demo), link_penetration=True, seed=TRIAL_SEED,
                    workers=2, time_budget_s=60.0)
     if not res.grasps:
@@ -75,7 +76,7 @@ def main() -> None:
                     help="grasps of each demo's trial augmentation")
     args = ap.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    for noisy in ("teleop", "augment.fsg", "sim"):
+    for noisy in ("teleop", "augment.fsg.sampler", "sim"):
         logging.getLogger(noisy).setLevel(logging.WARNING)
     ensure_menagerie_root()
     hand = Hand.load(args.hand)

@@ -1,7 +1,7 @@
 """Rebuild ``configs/grasps/shadow_right.toml``: hand-built Shadow Hand grasps on YCB objects.
 
 Each grasp is made the way a person would: put the palm against the object, close the fingers
-until they stop (sim.closing), and store what the hand ended up with. Run:
+until they stop (sim.world.closing), and store what the hand ended up with. Run:
 ``.venv/bin/python scripts/make_reference_grasps.py``.
 """
 
@@ -9,13 +9,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.closing import close_on_object
-from sim.hand import Hand
+from sim.hand.model import Hand
+from sim.hand.reference_grasps import GRASPS_DIR
 from sim.io import write_bytes_atomic
-from sim.objects import load_object
-from sim.reference_grasps import GRASPS_DIR
-from sim.scene import Scene
 from sim.transforms import mat_to_quat
+from sim.world.closing import close_on_object
+from sim.world.objects import load_object
+from sim.world.scene import Scene
 
 # (name, object, palm position in the object frame (m), frame_palm's x, y, z axes expressed in
 #  the object frame, note). The placements were chosen by trying palm sides, finger directions

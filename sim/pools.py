@@ -19,15 +19,12 @@ import atexit
 import os
 import threading
 import time
+from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import get_context
 
-__all__ = ["PRELOAD", "persistent_pool"]
+__all__ = ["persistent_pool"]
 
-#: what the fork server imports before forking workers: the validator and the grasp sampler.
-#: One pool serves both, so the validator scene a worker compiles for FSG's exact penetration
-#: check (1–3 s per hand and object) is the one it validates with next.
-PRELOAD = ("sim.validate", "augment.fsg")
 _POOLS: dict[int, ProcessPoolExecutor] = {}
 #: seconds between a worker's checks that its owner is alive
 _OWNER_POLL_S = 1.0
@@ -48,9 +45,13 @@ def _exit_with_owner(owner_pid: int) -> None:
     threading.Thread(target=watch, name="dexaug-owner-watch", daemon=True).start()
 
 
-def persistent_pool(workers: int) -> ProcessPoolExecutor:
-    """The process-wide pool of ``workers`` processes (fork server preloading ``PRELOAD``),
-    created on first use. A pool whose worker died is replaced."""
+def persistent_pool(workers: int, preload: Sequence[str] = ()) -> ProcessPoolExecutor:
+    """The process-wide pool of ``workers`` processes, created on first use; a pool whose
+    worker died is replaced. ``preload``: modules the fork server imports before forking
+    workers, so each worker starts with them (the caller that creates the pool names what all
+    its users need: one pool serves FSG and validation, so the validator scene a worker
+    compiles for FSG's exact penetration check, 1–3 s per hand and object, is the one it
+    validates with next). Modules not preloaded are imported by a worker on first use."""
     key = workers
     pool = _POOLS.get(key)
     if pool is not None and getattr(pool, "_broken", False):
@@ -58,7 +59,7 @@ def persistent_pool(workers: int) -> ProcessPoolExecutor:
         pool = None
     if pool is None:
         ctx = get_context("forkserver")
-        ctx.set_forkserver_preload(list(PRELOAD))
+        ctx.set_forkserver_preload(list(preload))
         pool = _POOLS[key] = ProcessPoolExecutor(workers, mp_context=ctx,
                                                  initializer=_exit_with_owner,
                                                  initargs=(os.getpid(),))

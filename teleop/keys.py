@@ -16,7 +16,7 @@ key                            kind        payload
 =============================  ==========  =================================================
 
 Control commands: ``start_recording``, ``stop_recording``, ``choose_object``,
-``reset_object``, ``mark_grasp``, ``status`` (see :mod:`teleop.bridge`).
+``reset_object``, ``mark_grasp``, ``status`` (see :mod:`teleop.bridge.bridge`).
 
 Tests and the CLI open peers on loopback with multicast scouting **off** (:func:`open_session`):
 scouting would let concurrent test runs on one machine discover and talk to each other.

@@ -6,7 +6,7 @@ captures). Fixing one versioned layout here means the bridge never cares where a
 from, and an old recording read by newer code fails loudly instead of being misread.
 
 In memory (:class:`HandFrame`) everything is already in the MuJoCo world convention (+Z up,
-metres, quaternions **wxyz**, see :mod:`teleop.frames`): converters in :mod:`teleop.webxr`
+metres, quaternions **wxyz**, see :mod:`teleop.input.frames`): converters in :mod:`teleop.input.webxr`
 and the ingest code convert once, on arrival. Each hand has the 26 OpenXR
 ``XR_EXT_hand_tracking`` joints, PALM first (:data:`OPENXR_JOINTS`).
 
@@ -102,7 +102,7 @@ class HandState:
     """One hand, 26 OpenXR joints (PALM first), MuJoCo world frame.
 
     positions: (26,3) metres. orientations_wxyz: (26,4) unit quaternions, joint frame → world
-    (local axes as described in :mod:`teleop.frames`). radii: (26,) metres. valid: (26,) bool —
+    (local axes as described in :mod:`teleop.input.frames`). radii: (26,) metres. valid: (26,) bool —
     joints not valid may hold anything (NaN by convention) and must be ignored. tracked: the
     runtime reports the hand as tracked (its wrist is valid); consumers check this first.
     """

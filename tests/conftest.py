@@ -26,7 +26,7 @@ needs_ycb = pytest.mark.skipif(ycb_root(required=False) is None,
 
 @pytest.fixture(scope="session")
 def shadow():
-    from sim.hand import Hand
+    from sim.hand.model import Hand
 
     if not _menagerie_available():
         pytest.skip("no Menagerie models")

@@ -24,12 +24,12 @@ pytestmark = pytest.mark.skipif(not CAPTURE.is_file(), reason=f"no hand capture 
 
 @pytest.fixture(scope="module")
 def frames() -> list[HandFrame]:
-    from teleop.webxr import iwer_hand_frames, load_iwer_capture
+    from teleop.input.webxr import iwer_hand_frames, load_iwer_capture
     return iwer_hand_frames(load_iwer_capture(CAPTURE))
 
 
 def _config(**kw):
-    from teleop.bridge import load_bridge_config
+    from teleop.bridge.bridge import load_bridge_config
     cfg = load_bridge_config()
     return dataclasses.replace(cfg, **kw)
 
@@ -38,7 +38,7 @@ class _Rig:
     """A bridge on one peer and a client peer connected to it (distinct free ports)."""
 
     def __init__(self, frames, rig: str, **cfg_kw) -> None:
-        from teleop.bridge import Bridge
+        from teleop.bridge.bridge import Bridge
         port = keys.free_tcp_port()
         self.rig = rig
         self.bridge = Bridge("shadow_right", None, rig, _config(**cfg_kw), listen_port=port,
@@ -80,8 +80,8 @@ def _record(rig: _Rig, path, play) -> None:
 
 def test_quest_capture_replays_into_a_recording(frames, tmp_path, shadow):
     """Live path at real time: pinch frames → robot thumb–index < 2 cm, open frames > 6 cm."""
-    from teleop.replay import replay_capture
-    from teleop.session import open_session
+    from teleop.record.replay import replay_capture
+    from teleop.record.session import open_session
     rig = _Rig(frames, "t1")
     path = tmp_path / "live.mcap"
     try:
@@ -113,9 +113,9 @@ def test_quest_capture_replays_into_a_recording(frames, tmp_path, shadow):
 def _pinch_offset(frames, hand) -> np.ndarray:
     """World offset that puts the robot's thumb–index midpoint at the closest pinch onto the
     resting box's centre (computed offline with an independent Retargeter)."""
-    from sim.objects import load_object
     from sim.transforms import quat_to_mat
-    from teleop.retarget import Retargeter
+    from sim.world.objects import load_object
+    from teleop.retarget.retargeter import Retargeter
     r = Retargeter(hand)
     r.calibrate_scale(frames)
     res = [r.step_frame(f) for f in frames]
@@ -130,8 +130,8 @@ def _pinch_offset(frames, hand) -> np.ndarray:
 
 
 def test_recorded_contacts_in_object_and_fingertip_frames(frames, tmp_path, shadow):
-    from teleop.replay import replay_capture
-    from teleop.session import open_session
+    from teleop.record.replay import replay_capture
+    from teleop.record.session import open_session
     offset = _pinch_offset(frames, shadow)
     rig = _Rig(frames, "t2", deterministic=True, world_offset_m=offset, view_enabled=False)
     path = tmp_path / "contacts.mcap"
@@ -150,8 +150,8 @@ def test_recorded_contacts_in_object_and_fingertip_frames(frames, tmp_path, shad
 
 
 def test_replaying_a_recording_is_deterministic(frames, tmp_path):
-    from teleop.replay import replay, replay_capture
-    from teleop.session import open_session
+    from teleop.record.replay import replay, replay_capture
+    from teleop.record.session import open_session
     src = tmp_path / "src.mcap"
     rig = _Rig(frames[:300], "t3", deterministic=True, view_enabled=False)
     try:
@@ -221,7 +221,7 @@ def test_bad_input_is_counted_and_a_vanished_hand_holds(frames):
 
 def test_bridge_config_errors_name_file_and_key(tmp_path):
     from sim.errors import ConfigError
-    from teleop.bridge import load_bridge_config
+    from teleop.bridge.bridge import load_bridge_config
     bad = tmp_path / "teleop.toml"
     bad.write_text("[bridge]\nview_rate_hz = -1.0\n")
     with pytest.raises(ConfigError, match=r"teleop\.toml.*view_rate_hz"):
@@ -264,8 +264,8 @@ def test_control_object_commands_and_errors(frames):
 def test_recording_closed_hook(tmp_path) -> None:
     """--auto-augment's hook: called once with the finished file when a recording stops, and a
     failing hook never takes the bridge down."""
-    from teleop.bridge import Bridge
-    from teleop.session import open_session
+    from teleop.bridge.bridge import Bridge
+    from teleop.record.session import open_session
 
     closed = []
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from dexaug.cli import build_parser, main
-from sim.render import gl_available
+from sim.world.render import gl_available
 from tests.conftest import needs_menagerie, needs_ycb
 
 

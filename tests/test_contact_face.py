@@ -10,7 +10,7 @@ import pytest
 import trimesh
 from scipy.spatial import cKDTree
 
-from augment.contact_face import (
+from augment.geometry.contact_face import (
     ContactFace,
     ContactFaceError,
     contact_face,
@@ -19,8 +19,8 @@ from augment.contact_face import (
     visible_pulp_cloud,
     visible_pulp_indices,
 )
-from augment.sampling import mesh_area_m2, poisson_disk_sample, poisson_radius_m
-from augment.visibility import VisibilityError, hidden_point_removal
+from augment.geometry.sampling import mesh_area_m2, poisson_disk_sample, poisson_radius_m
+from augment.geometry.visibility import VisibilityError, hidden_point_removal
 from sim.errors import DexaugError
 
 SHADOW_DIR = Path("/work/shared/assets/menagerie/shadow_hand")

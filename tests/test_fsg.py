@@ -1,4 +1,4 @@
-"""FSG (augment.fsg), object clouds (augment.object_cloud) and the HDF5 dataset (augment.dataset).
+"""FSG (augment.fsg.sampler), object clouds (augment.object_cloud) and the HDF5 dataset (augment.dataset).
 
 The central checks: every generated grasp satisfies its own claims (contacts inside the claimed
 fingertip faces at the stored joint angles by forward kinematics, palm box clear, ε recomputed
@@ -18,11 +18,13 @@ import numpy as np
 import pytest
 
 from augment import dataset
-from augment.fsg import FsgError, FsgParams, _align, _axis_rot, generate, load_fsg_params
+from augment.fsg.sampler import FsgError, FsgParams, _align, _axis_rot, generate, load_fsg_params
+from augment.geometry.sampling import poisson_disk_sample
 from augment.object_cloud import ObjectCloudError, normal_variation, object_cloud
-from augment.sampling import poisson_disk_sample
-from sim.gws import gws_metrics
+from sim.errors import DexaugError
+from sim.metrics.gws import gws_metrics
 from sim.transforms import quat_to_mat
+from sim.validate.batch import ScenePenetration
 from tests.conftest import needs_menagerie, needs_ycb
 
 CAN = "005_tomato_soup_can"
@@ -79,8 +81,8 @@ def test_load_fsg_params_defaults_and_errors(tmp_path: Path) -> None:
 
 @pytest.fixture(scope="module")
 def can_setup(shadow):  # type: ignore[no-untyped-def]
-    from augment.workspace import build_workspace
-    from sim.objects import load_object
+    from augment.autows.workspace import build_workspace
+    from sim.world.objects import load_object
 
     obj = load_object(CAN)
     ws = build_workspace(shadow)
@@ -91,7 +93,8 @@ def can_setup(shadow):  # type: ignore[no-untyped-def]
 @pytest.fixture(scope="module")
 def can_result(shadow, can_setup):  # type: ignore[no-untyped-def]
     _, ws, cloud = can_setup
-    return generate(shadow, cloud, ws, n=10, seed=0, time_budget_s=20, link_penetration=True)
+    return generate(shadow, cloud, ws, n=10, seed=0, time_budget_s=20, link_penetration=True,
+                    exact_penetration=ScenePenetration(shadow.name, cloud.name))
 
 
 @needs_menagerie
@@ -146,7 +149,7 @@ def test_outputs_satisfy_their_claims(shadow, can_setup, can_result) -> None:  #
     eps = [g.epsilon for g in res.grasps]
     assert eps == sorted(eps, reverse=True)
     # with the link penetration check, no output penetrates deeper than the validator allows
-    from sim.batch import cached_validator
+    from sim.validate.batch import cached_validator
 
     validator = cached_validator(shadow.name, cloud.name)
     deepest = max(validator.penetration_m(g.grasp) for g in res.grasps)
@@ -157,7 +160,8 @@ def test_outputs_satisfy_their_claims(shadow, can_setup, can_result) -> None:  #
 @needs_ycb
 def test_same_seed_same_grasps(shadow, can_setup, can_result) -> None:  # type: ignore[no-untyped-def]
     _, ws, cloud = can_setup
-    again = generate(shadow, cloud, ws, n=10, seed=0, time_budget_s=20, link_penetration=True)
+    again = generate(shadow, cloud, ws, n=10, seed=0, time_budget_s=20, link_penetration=True,
+                    exact_penetration=ScenePenetration(shadow.name, cloud.name))
     assert len(again.grasps) == len(can_result.grasps)
     for a, b in zip(again.grasps, can_result.grasps, strict=True):
         np.testing.assert_array_equal(a.grasp.joints, b.grasp.joints)
@@ -167,7 +171,7 @@ def test_same_seed_same_grasps(shadow, can_setup, can_result) -> None:  # type: 
 @needs_menagerie
 @needs_ycb
 def test_lift_drop_pass_rate(can_result) -> None:  # type: ignore[no-untyped-def]
-    from sim.batch import validate_many
+    from sim.validate.batch import validate_many
 
     grasps = [g.grasp for g in can_result.grasps]
     results = validate_many("shadow_right", CAN, grasps, "lift-drop",
@@ -184,9 +188,9 @@ def test_demo_seeded_run_ends_cleanly(shadow, can_setup) -> None:  # type: ignor
     """With the can_side_wrap demo (a power wrap: the fingertips face the palm), FSG's
     precision model finds few or no grasps; whatever it finds must satisfy the claims, and the
     run must end within its budget with the shortfall reported."""
-    from augment.workspace import DemoSeed, build_workspace
-    from sim.reference_grasps import load_reference_grasps
-    from sim.validate import Validator
+    from augment.autows.workspace import DemoSeed, build_workspace
+    from sim.hand.reference_grasps import load_reference_grasps
+    from sim.validate.validator import Validator
 
     obj, _, cloud = can_setup
     ref = next(r for r in load_reference_grasps(shadow) if r.name == "can_side_wrap")
@@ -204,7 +208,7 @@ def test_demo_seeded_run_ends_cleanly(shadow, can_setup) -> None:  # type: ignor
 @needs_menagerie
 @needs_ycb
 def test_table_mode_keeps_the_palm_above_the_table(shadow, can_setup) -> None:  # type: ignore[no-untyped-def]
-    from augment.fsg import _box_vertices
+    from augment.fsg.sampler import _box_vertices
 
     _, ws, cloud = can_setup
     params = load_fsg_params()
@@ -242,8 +246,8 @@ def test_workspace_of_another_hand(shadow, can_setup) -> None:  # type: ignore[n
     _, ws, cloud = can_setup
     with pytest.raises(FsgError, match="allegro_right"):
         generate(shadow, cloud, dataclasses.replace(ws, hand="allegro_right"), n=1)
-    from augment.workspace import build_workspace
-    from sim.hand import Hand
+    from augment.autows.workspace import build_workspace
+    from sim.hand.model import Hand
 
     try:
         allegro = Hand.load("allegro_right")
@@ -258,18 +262,16 @@ def test_workspace_of_another_hand(shadow, can_setup) -> None:  # type: ignore[n
 
 @needs_menagerie
 @needs_ycb
-def test_link_penetration_needs_a_loadable_object(shadow, can_setup) -> None:  # type: ignore[no-untyped-def]
-    _, ws, cloud = can_setup
-    stray = dataclasses.replace(cloud, name="no_such_object_xyz")
-    with pytest.raises(FsgError, match=r"link penetration.*'no_such_object_xyz' does not load"):
-        generate(shadow, stray, ws, n=1, link_penetration=True)
+def test_exact_penetration_needs_a_loadable_object(shadow) -> None:  # type: ignore[no-untyped-def]
+    with pytest.raises(DexaugError, match=r"exact penetration.*'no_such_object_xyz' does not load"):
+        ScenePenetration.of(shadow.name, "no_such_object_xyz")
 
 
 # ------------------------------------------------------------------------------ dataset
 
 
 def _fake_grasps(n: int, nq: int, fingers: tuple[str, ...], seed: int = 0) -> list:
-    from augment.fsg import FsgGrasp
+    from augment.fsg.sampler import FsgGrasp
     from sim.grasp import Grasp
 
     rng = np.random.default_rng(seed)

@@ -1,4 +1,4 @@
-"""Grasp wrench space metrics (sim.gws): friction cones, wrenches, Q1 (ε) and volume.
+"""Grasp wrench space metrics (sim.metrics.gws): friction cones, wrenches, Q1 (ε) and volume.
 
 The central check is a closed-form ε for a symmetric cube grasp, cross-checked against an
 independent linear program (no Qhull), plus the force-closure conventions (ε = −1 when the origin
@@ -13,7 +13,7 @@ from scipy.optimize import linprog
 from scipy.spatial import ConvexHull
 from scipy.spatial.transform import Rotation
 
-from sim.gws import (
+from sim.metrics.gws import (
     DEGENERATE,
     NO_FORCE_CLOSURE,
     GwsMetrics,

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from sim.errors import ConfigError, GraspInputError
-from sim.hand import Hand
-from sim.hand_config import HANDS_DIR, load_hand_config
+from sim.hand.config import HANDS_DIR, load_hand_config
+from sim.hand.model import Hand
 from tests.conftest import needs_menagerie
 
 HANDS = ["shadow_right", "allegro_right", "robotiq_2f85"]

@@ -17,7 +17,17 @@ import pytest
 from sim import transforms
 from sim.errors import DexaugError
 from sim.paths import SHARED_ASSETS
-from teleop import frames
+from teleop.input import frames
+from teleop.input.webxr import (
+    WEBXR_JOINTS,
+    CaptureError,
+    IwerCapture,
+    from_webxr_joints,
+    hand_frame_from_webxr,
+    iwer_hand_frames,
+    load_iwer_capture,
+    parse_js_literal,
+)
 from teleop.messages import (
     FINGERTIPS,
     HEADER_SIZE,
@@ -31,16 +41,6 @@ from teleop.messages import (
     decode,
     encode,
     validate,
-)
-from teleop.webxr import (
-    WEBXR_JOINTS,
-    CaptureError,
-    IwerCapture,
-    from_webxr_joints,
-    hand_frame_from_webxr,
-    iwer_hand_frames,
-    load_iwer_capture,
-    parse_js_literal,
 )
 
 logger = logging.getLogger(__name__)

@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 
 from sim.errors import AssetError
-from sim.objects import ContactParams, ObjectAsset, list_objects, load_object
 from sim.paths import YCB_ENV, ycb_root
-from sim.primitives import PRIMITIVES
+from sim.world.objects import ContactParams, ObjectAsset, list_objects, load_object
+from sim.world.primitives import PRIMITIVES
 from tests.conftest import needs_ycb
 
 # full AABB edge lengths (m) and masses (kg) the primitives are meant to have
@@ -286,10 +286,10 @@ def test_missing_texture_is_dropped_with_one_warning(tmp_path: Path,
     assert not (source / "assets" / "002_master_chef_can.png").exists()
     copy = tmp_path / source.name          # a fresh path: not yet warned in this process
     shutil.copytree(source, copy)
-    with caplog.at_level(logging.WARNING, logger="sim.objects"):
+    with caplog.at_level(logging.WARNING, logger="sim.world.objects"):
         obj = load_object(copy)
         again = load_object(str(copy / "master_chef_can.xml"))
-    records = [r for r in caplog.records if r.name == "sim.objects"]
+    records = [r for r in caplog.records if r.name == "sim.world.objects"]
     assert len(records) == 1
     assert "master_chef_can.xml" in records[0].getMessage()
     assert "002_master_chef_can.png" in records[0].getMessage()
@@ -330,9 +330,9 @@ def test_name_resolution() -> None:
 
 @needs_ycb
 def test_list_objects_reports_broken_objects(caplog: pytest.LogCaptureFixture) -> None:
-    with caplog.at_level(logging.WARNING, logger="sim.objects"):
+    with caplog.at_level(logging.WARNING, logger="sim.world.objects"):
         statuses = {s.name: s for s in list_objects()}
-    assert not [r for r in caplog.records if r.name == "sim.objects"]   # returned, not logged
+    assert not [r for r in caplog.records if r.name == "sim.world.objects"]   # returned, not logged
     folders = [p for p in ycb_root().iterdir() if p.is_dir()]
     assert len(statuses) == len(PRIMITIVES) + len(folders)
     for name in BROKEN:

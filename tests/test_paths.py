@@ -7,9 +7,9 @@ from pathlib import Path
 import pytest
 
 from sim.errors import AssetError
-from sim.hand import Hand
-from sim.objects import load_object
+from sim.hand.model import Hand
 from sim.paths import MENAGERIE_ENV, YCB_ENV, ensure_menagerie_root, ycb_root
+from sim.world.objects import load_object
 
 
 def test_missing_ycb_root_names_variable_and_path(tmp_path: Path,

@@ -1,4 +1,4 @@
-"""Session → demo → AutoWS → FSG → validation → dataset + report (augment.demo, augment.pipeline).
+"""Session → demo → AutoWS → FSG → validation → dataset + report (teleop.record.demos, dexaug.pipeline.run).
 
 The end-to-end check runs the committed scripted demonstration of the tomato soup can through
 the whole pipeline and checks the dataset against its own claims and the report against the
@@ -17,10 +17,11 @@ import numpy as np
 import pytest
 
 from augment import dataset
-from augment.demo import DemoError, extract_demos, load_demo, save_demo
+from sim.demo import DemoError, load_demo, save_demo
 from sim.errors import DexaugError
 from sim.paths import REPO_ROOT
-from teleop.recorder import SessionRecorder
+from teleop.record.demos import extract_demos
+from teleop.record.recorder import SessionRecorder
 from tests.conftest import needs_menagerie, needs_ycb
 
 CAN_SESSION = REPO_ROOT / "recordings" / "demo_005_tomato_soup_can.mcap"
@@ -79,8 +80,8 @@ def test_demo_of_the_committed_session_and_file_round_trip(tmp_path: Path) -> No
     assert d.object == "005_tomato_soup_can" and d.hand == "shadow_right"
     assert "thumb" in d.fingers and len(d.fingers) >= 2 and d.duration_s >= 0.3
     # contacts lie on the can: within a few mm of its surface in the object frame
-    from sim.objects import load_object
-    from teleop.synth import surface_distance_m
+    from sim.world.objects import load_object
+    from teleop.synthetic.synth import surface_distance_m
 
     mesh = load_object(d.object).surface_mesh()
     for pts in d.contact_points_obj.values():
@@ -98,7 +99,8 @@ def test_demo_of_the_committed_session_and_file_round_trip(tmp_path: Path) -> No
 @needs_menagerie
 @needs_ycb
 def test_hand_not_installed(tmp_path: Path) -> None:
-    from augment.pipeline import AugmentOptions, augment_demo
+    from dexaug.pipeline.options import AugmentOptions
+    from dexaug.pipeline.run import augment_demo
 
     d = extract_demos(CAN_SESSION)[0]
     ghost = type(d)(**{**d.__dict__, "hand": "no_such_hand"})
@@ -113,8 +115,9 @@ def test_session_to_validated_dataset_and_report(shadow, tmp_path: Path) -> None
     """A recorded session in, a dataset out: ≥ 20 grasps that pass lift-drop, joint angles
     within the demo-centred ranges, the report stating the dataset's numbers; re-running skips
     the finished demo."""
-    from augment.pipeline import AugmentOptions, augment_session
-    from augment.workspace import load_autows_params
+    from augment.autows.workspace import load_autows_params
+    from dexaug.pipeline.options import AugmentOptions
+    from dexaug.pipeline.run import augment_session
 
     opts = AugmentOptions(n=80, workers=2, time_budget_s=90.0, gallery=2)
     (s,) = augment_session(CAN_SESSION, tmp_path, opts)
@@ -138,7 +141,7 @@ def test_session_to_validated_dataset_and_report(shadow, tmp_path: Path) -> None
     assert int(shown["grasps-passed-validation"]) == len(t)
     assert int(shown["grasps-generated-fsg"]) == len(t) + len(t.rejected)
     assert (Path(s.report).parent / "palm_cloud.png").stat().st_size > 1000
-    from sim.validate import VALIDATE_TOML
+    from sim.validate.validator import VALIDATE_TOML
     assert t.attrs["config:validate.toml"] == VALIDATE_TOML.read_text()   # provenance
     again = augment_session(CAN_SESSION, tmp_path, opts)
     assert again[0].skipped and again[0].passed == s.passed
@@ -153,8 +156,8 @@ def test_run_key_follows_every_input(tmp_path: Path, monkeypatch: pytest.MonkeyP
     """A finished demo is skipped only when options, demo and configs are all unchanged."""
     import dataclasses
 
-    from augment import pipeline
-    from augment.pipeline import AugmentOptions, run_key
+    from dexaug.pipeline import options as pipeline
+    from dexaug.pipeline.options import AugmentOptions, run_key
 
     demo = load_demo(REPO_ROOT / "recordings" / "demos" / "005_tomato_soup_can.json")
     configs = []
@@ -214,8 +217,8 @@ def test_watch_mode_augments_finished_sessions_only(tmp_path: Path) -> None:
 def test_rerecord_gives_a_raw_session_state_contacts_and_its_marks(tmp_path: Path) -> None:
     """`dexaug rerecord`: every /hands frame of a raw-input session goes through the bridge
     (one state and one contact record each, deterministic mode) and its grasp_mark comes back."""
-    from teleop.rerecord import rerecord
-    from teleop.session import open_session
+    from teleop.record.rerecord import rerecord
+    from teleop.record.session import open_session
 
     src = open_session(RAW_SESSION)
     out = open_session(rerecord(RAW_SESSION, tmp_path / "full.mcap"))

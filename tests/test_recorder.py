@@ -20,11 +20,11 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
-from teleop import schemas
 from teleop.messages import NUM_JOINTS, HandFrame, HandState, encode
-from teleop.recorder import SessionRecorder
-from teleop.schemas import ContactRecord, FrameTransform
-from teleop.session import SessionError, open_session, repair_session
+from teleop.record import schemas
+from teleop.record.recorder import SessionRecorder
+from teleop.record.schemas import ContactRecord, FrameTransform
+from teleop.record.session import SessionError, open_session, repair_session
 
 REPO = Path(__file__).resolve().parents[1]
 JOINTS = [f"rh_J{i}" for i in range(24)]
@@ -246,7 +246,7 @@ _CHILD = textwrap.dedent("""
     import sys, time
     import numpy as np
     from teleop.messages import HandFrame, HandState, NUM_JOINTS
-    from teleop.recorder import SessionRecorder
+    from teleop.record.recorder import SessionRecorder
 
     rec = SessionRecorder(sys.argv[1], metadata={"hand": "shadow_right",
                                                  "joint_names": [f"j{i}" for i in range(24)]})
@@ -285,7 +285,7 @@ def test_killed_recorder_leaves_a_readable_file(tmp_path: Path,
     written, flushed = map(int, lines[-1])
     assert written > 150  # about 300 at 200 Hz
 
-    with caplog.at_level(logging.WARNING, logger="teleop.session"):
+    with caplog.at_level(logging.WARNING, logger="teleop.record.session"):
         s = open_session(path)
     assert s.truncated and s.stop_offset <= s.file_size
     assert "truncated at byte offset" in caplog.text

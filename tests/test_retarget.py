@@ -1,4 +1,4 @@
-"""Retargeting the real Quest 3 capture onto the Shadow Hand with mink (teleop.retarget).
+"""Retargeting the real Quest 3 capture onto the Shadow Hand with mink (teleop.retarget.retargeter).
 
 Everything runs the real solver (mink + daqp) on the real recording in
 ``../shared/assets/handdata``; the module skips where the assets are absent.
@@ -16,8 +16,9 @@ import pytest
 from sim.errors import ConfigError
 from sim.paths import SHARED_ASSETS
 from sim.transforms import pose_mul, quat_angle
+from teleop.input.webxr import iwer_hand_frames, load_iwer_capture
 from teleop.messages import JOINT_INDEX, HandFrame, HandState
-from teleop.retarget import (
+from teleop.retarget.retargeter import (
     HOLD_REASONS,
     TELEOP_CONFIG,
     Retargeter,
@@ -26,7 +27,6 @@ from teleop.retarget import (
     retarget_frames,
     summarise_errors,
 )
-from teleop.webxr import iwer_hand_frames, load_iwer_capture
 
 CAPTURE = SHARED_ASSETS / "handdata" / "quest3_webxr" / "cap.min.js"
 # the `shadow` fixture (conftest) skips where the Menagerie models are absent

@@ -6,9 +6,9 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from sim.hand import Hand
-from sim.objects import load_object
-from sim.scene import TABLE_TOP_Z, Scene
+from sim.hand.model import Hand
+from sim.world.objects import load_object
+from sim.world.scene import TABLE_TOP_Z, Scene
 from tests.conftest import needs_menagerie
 
 pytestmark = needs_menagerie

@@ -13,10 +13,11 @@ import pytest
 
 from sim import transforms
 from sim.paths import SHARED_ASSETS
-from teleop import frames, keys
+from teleop import keys
+from teleop.input import frames
+from teleop.input.stream_ingest import HTS_TO_WEBXR, HtsParser, StreamIngest
+from teleop.input.webxr import from_webxr_joints
 from teleop.messages import JOINT_INDEX, MessageError, decode
-from teleop.stream_ingest import HTS_TO_WEBXR, HtsParser, StreamIngest
-from teleop.webxr import from_webxr_joints
 
 DERIVED = SHARED_ASSETS / "handdata" / "quest3_webxr" / "derived" / "quest3_hands_world.npz"
 pytestmark = pytest.mark.skipif(not DERIVED.is_file(), reason=f"no derived capture {DERIVED}")

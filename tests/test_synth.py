@@ -1,4 +1,4 @@
-"""The synthetic operator (teleop.synth): a human hand model, a grasp episode, a sensor model.
+"""The synthetic operator (teleop.synthetic.synth): a human hand model, a grasp episode, a sensor model.
 
 The central check retargets a synthetic episode with the real Retargeter (mink + daqp) and
 measures where the robot fingertips and palm land relative to the object: the episode is only
@@ -17,7 +17,7 @@ import pytest
 from sim.errors import ConfigError
 from sim.transforms import quat_to_mat
 from teleop.messages import JOINT_INDEX, OPENXR_JOINTS, decode, encode, validate
-from teleop.synth import (
+from teleop.synthetic.synth import (
     HandPose,
     HumanHand,
     SynthConfig,
@@ -57,7 +57,7 @@ def test_human_proportions_and_joint_frames() -> None:
         assert seg[0] > seg[1] > seg[2] > 0.015, (f, seg)
     tips = [JOINT_INDEX[f"{f}_tip"] for f in ("thumb", "index", "middle", "ring", "little")]
     assert np.all((hand.radii[tips] >= 0.007) & (hand.radii[tips] <= 0.010))
-    # the thumb is on +y of a right hand's wrist frame (OpenXR after teleop.frames), −y of a left
+    # the thumb is on +y of a right hand's wrist frame (OpenXR after teleop.input.frames), −y of a left
     assert pos[JOINT_INDEX["thumb_tip"], 1] > 0.03
     assert HumanHand(0.185, "left").joints_in_wrist(straight)[0][JOINT_INDEX["thumb_tip"], 1] < -0.03
     # joint frames: +x along the bone toward the next joint, +z dorsal, proper rotations
@@ -148,9 +148,9 @@ def _grasp_metrics(shadow, ep) -> tuple[np.ndarray, float]:
     fingers closed, before the lift), the per-finger median |distance| (metres) of the robot
     pulp sites (world, via the result's base pose) to the object surface, and the median
     distance of the robot palm from the reference grasp's palm position (object frame)."""
-    from sim.objects import load_object
-    from sim.reference_grasps import load_reference_grasps
-    from teleop.retarget import Retargeter
+    from sim.hand.reference_grasps import load_reference_grasps
+    from sim.world.objects import load_object
+    from teleop.retarget.retargeter import Retargeter
 
     ref = next(r for r in load_reference_grasps(shadow) if r.name == ep.reference_grasp)
     assert ref.object == ep.object_name
@@ -212,7 +212,7 @@ def test_generic_grasp_without_reference(shadow) -> None:
 @needs_menagerie
 @needs_ycb
 def test_write_session(shadow, tmp_path: Path) -> None:
-    from teleop.session import open_session
+    from teleop.record.session import open_session
 
     ep = synthesize(CAN, hand=shadow, seed=5, config=SHORT)
     path = write_session(ep, tmp_path / "synth.mcap")

@@ -12,11 +12,11 @@ import pytest
 
 from sim.errors import ConfigError, GraspInputError
 from sim.grasp import Grasp
-from sim.hand import Hand
-from sim.objects import load_object
-from sim.reference_grasps import load_reference_grasps
+from sim.hand.model import Hand
+from sim.hand.reference_grasps import load_reference_grasps
 from sim.transforms import rotate
-from sim.validate import Failure, ValidateConfig, Validator
+from sim.validate.validator import Failure, ValidateConfig, Validator
+from sim.world.objects import load_object
 from tests.conftest import needs_menagerie, needs_ycb
 
 pytestmark = [needs_menagerie, needs_ycb]
@@ -93,7 +93,7 @@ def test_validation_is_deterministic(validators, references) -> None:
 
 
 def test_batch_matches_serial_and_keeps_order(references) -> None:
-    from sim.batch import validate_many
+    from sim.validate.batch import validate_many
 
     obj = "005_tomato_soup_can"
     grasps = [references[obj], _shifted(references[obj], 0.5), references[obj]]

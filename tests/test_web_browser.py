@@ -34,7 +34,7 @@ pytestmark = [pytest.mark.skipif(not CAPTURE.is_file(), reason=f"no hand capture
 
 
 def _ingest(rig: str, **kw):
-    from teleop.web_ingest import WebIngest, WebIngestConfig
+    from teleop.input.web_ingest import WebIngest, WebIngestConfig
     why = iwer_missing()
     if why:
         pytest.skip(why)
@@ -80,14 +80,14 @@ def _wait(page, expr: str, timeout_s: float, what: str) -> None:
 
 @pytest.fixture(scope="module")
 def capture_frames():
-    from teleop.webxr import iwer_hand_frames, load_iwer_capture
+    from teleop.input.webxr import iwer_hand_frames, load_iwer_capture
     return {f.seq: f for f in iwer_hand_frames(load_iwer_capture(CAPTURE))}
 
 
 def test_quest3_replay_reaches_the_bridge_and_the_view_comes_back(chromium, capture_frames,
                                                                    shadow, caplog):
-    from teleop.bridge import Bridge, load_bridge_config
-    caplog.set_level(logging.INFO, logger="teleop.web_ingest")
+    from teleop.bridge.bridge import Bridge, load_bridge_config
+    caplog.set_level(logging.INFO, logger="teleop.input.web_ingest")
     t_start = time.perf_counter()
     rig = "webq3"
     ingest, zport = _ingest(rig)
@@ -150,8 +150,8 @@ def test_quest3_replay_reaches_the_bridge_and_the_view_comes_back(chromium, capt
     # --- joint poses equal the capture's after the frame conversion (1 mm; rounding 1e-3)
     by_seq = {f.seq: f for f in received}
     derived = np.load(DERIVED)
-    from teleop.frames import xr_to_mujoco_positions
-    from teleop.webxr import WEBXR_JOINTS
+    from teleop.input.frames import xr_to_mujoco_positions
+    from teleop.input.webxr import WEBXR_JOINTS
     assert list(derived["joint_names"]) == list(WEBXR_JOINTS)
     errs, quat_dots, errs_derived, n_hands = [], [], [], 0
     def expected(row: int, side: str):
@@ -207,7 +207,7 @@ def test_quest3_replay_reaches_the_bridge_and_the_view_comes_back(chromium, capt
 
 
 def test_a_browser_without_hand_tracking_says_so(chromium, caplog):
-    caplog.set_level(logging.INFO, logger="teleop.web_ingest")
+    caplog.set_level(logging.INFO, logger="teleop.input.web_ingest")
     ingest, _ = _ingest("webnohands")
     page = new_page(chromium)
     try:
@@ -225,7 +225,7 @@ def test_a_browser_without_hand_tracking_says_so(chromium, caplog):
 
 
 def test_no_immersive_vr_and_a_second_headset_are_refused_visibly(chromium, caplog):
-    caplog.set_level(logging.INFO, logger="teleop.web_ingest")
+    caplog.set_level(logging.INFO, logger="teleop.input.web_ingest")
     ingest, _ = _ingest("webtwo")
     first, second = new_page(chromium), new_page(chromium)
     try:
@@ -250,7 +250,7 @@ def test_no_immersive_vr_and_a_second_headset_are_refused_visibly(chromium, capl
 
 
 def test_a_lost_websocket_shows_reconnecting_and_recovers(chromium, caplog):
-    caplog.set_level(logging.INFO, logger="teleop.web_ingest")
+    caplog.set_level(logging.INFO, logger="teleop.input.web_ingest")
     ingest, _ = _ingest("weblost")
     port = ingest.port
     page = new_page(chromium)

@@ -14,8 +14,7 @@ import pytest
 from aiohttp import ClientSession, WSMsgType
 
 from teleop import keys
-from teleop.messages import MessageError, decode
-from teleop.web_ingest import (
+from teleop.input.web_ingest import (
     WS_HEADER_SIZE,
     WebIngest,
     WebIngestConfig,
@@ -23,7 +22,8 @@ from teleop.web_ingest import (
     pack_ws_frame,
     parse_ws_frame,
 )
-from teleop.webxr import hand_frame_from_webxr
+from teleop.input.webxr import hand_frame_from_webxr
+from teleop.messages import MessageError, decode
 
 
 def _hand(seed: int) -> np.ndarray:

@@ -1,6 +1,6 @@
-"""AutoWS workspace clouds (augment.workspace, augment.fingertip): exactness against MuJoCo's own
-kinematics for every hand, contact faces on the pulp, demo-centred clouds, bad input, the disk
-cache and the rendering."""
+"""AutoWS workspace clouds (augment.autows.workspace, augment.autows.fingertip): exactness
+against MuJoCo's own kinematics for every hand, contact faces on the pulp, demo-centred clouds,
+bad input, the disk cache and the rendering."""
 
 from __future__ import annotations
 
@@ -14,16 +14,15 @@ import numpy as np
 import pytest
 import trimesh
 
-from augment import fingertip as fingertip_mod
-from augment.contact_face import ContactFaceError
-from augment.fingertip import (
+from augment.autows import fingertip as fingertip_mod
+from augment.autows.fingertip import (
     FingertipParams,
     TipMesh,
     fingertip_faces,
     hand_fingertip_faces,
     tip_mesh,
 )
-from augment.workspace import (
+from augment.autows.workspace import (
     FACE_KINDS,
     AutoWSParams,
     DemoSeed,
@@ -36,8 +35,9 @@ from augment.workspace import (
     render_workspace_png,
     summarise,
 )
+from augment.geometry.contact_face import ContactFaceError
 from sim.errors import ConfigError
-from sim.hand import Hand
+from sim.hand.model import Hand
 from sim.transforms import pose_mul, quat_to_mat
 from tests.conftest import needs_menagerie
 
@@ -393,7 +393,7 @@ def test_cache_hits_and_keys(hands: dict[str, Hand], params: AutoWSParams, _tmp_
     assert not first.from_cache
     files = list((_tmp_cache / "workspace").glob("*.npz"))
     assert len(files) == 1
-    with caplog.at_level(logging.INFO, logger="augment.workspace"):
+    with caplog.at_level(logging.INFO, logger="augment.autows.workspace"):
         second = build_workspace(hand, params, fingers=["forefinger", "middle"])
     assert second.from_cache and "loaded from cache" in caplog.text
     assert second.provenance["key"] == first.provenance["key"]
@@ -416,7 +416,7 @@ def test_cache_hits_and_keys(hands: dict[str, Hand], params: AutoWSParams, _tmp_
     # a damaged cache file is rebuilt, not trusted
     for f in (_tmp_cache / "workspace").glob("*.npz"):
         f.write_bytes(b"garbage")
-    with caplog.at_level(logging.WARNING, logger="augment.workspace"):
+    with caplog.at_level(logging.WARNING, logger="augment.autows.workspace"):
         again = build_workspace(hand, params, fingers=["forefinger", "middle"])
     assert not again.from_cache and "damaged" in caplog.text
 
@@ -452,7 +452,7 @@ def test_summary_and_sizes(clouds: dict[str, WorkspaceCloud]) -> None:
 
 
 def _gl() -> str | None:
-    from sim.render import gl_available
+    from sim.world.render import gl_available
 
     return gl_available()
 
@@ -460,7 +460,7 @@ def _gl() -> str | None:
 def test_projection_matches_the_renderer() -> None:
     if _gl() is None:
         pytest.skip("no OpenGL backend")
-    from sim.render import render_scene
+    from sim.world.render import render_scene
 
     pts = np.array([[0.0, 0.0, 0.0], [0.06, -0.04, 0.03], [-0.05, 0.03, -0.04]])
     spheres = "".join(f'<geom type="sphere" size=".006" pos="{p[0]} {p[1]} {p[2]}" '

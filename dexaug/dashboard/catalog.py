@@ -1,7 +1,7 @@
 """What the dashboard lists: the sessions of a folder, their demos, thumbnails and results.
 
 Every ``*.mcap`` is listed. A session that gives no demo (raw input only, no grasp, no object,
-truncated beyond use, not MCAP) is listed with the reason :func:`augment.demo.extract_demos`
+truncated beyond use, not MCAP) is listed with the reason :func:`teleop.record.demos.extract_demos`
 gives, and a demo whose hand or object cannot be loaded here carries that error and cannot be
 augmented: the user sees why, instead of wondering where a recording went. Extraction is
 cached per file by size and modification time, so a rescan only reads new or changed files.
@@ -24,9 +24,11 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import quote
 
-from augment.demo import Demo, extract_demos
-from augment.pipeline import AugmentOptions, demo_dir, finished
+from dexaug.pipeline.options import AugmentOptions, demo_dir
+from dexaug.pipeline.summary import finished
+from sim.demo import Demo
 from sim.errors import DexaugError
+from teleop.record.demos import extract_demos
 
 __all__ = ["Catalog", "DemoEntry", "SessionEntry", "result_view"]
 
@@ -141,7 +143,7 @@ class Catalog:
     def _truncation(path: Path) -> str | None:
         """A warning when the recorder did not close the file: its demos come from the readable
         part only, which the user should know before trusting them."""
-        from teleop.session import SessionError, open_session
+        from teleop.record.session import SessionError, open_session
 
         try:
             session = open_session(path)
@@ -157,8 +159,8 @@ class Catalog:
         with self._lock:
             if (hand, obj) in self._loadable:
                 return self._loadable[(hand, obj)]
-        from sim.hand import Hand
-        from sim.objects import load_object
+        from sim.hand.model import Hand
+        from sim.world.objects import load_object
 
         why = None
         try:
@@ -235,16 +237,16 @@ class Catalog:
 
     def _gl_missing(self) -> str | None:
         if not self._gl_probed:
-            from sim.render import gl_available
+            from sim.world.render import gl_available
 
             self._gl, self._gl_probed = gl_available(), True
         return None if self._gl else "no offscreen OpenGL on this machine (make gl)"
 
     def _render(self, entry: DemoEntry, path: Path) -> None:
-        from sim.hand import Hand
-        from sim.objects import load_object
-        from sim.render import save_png
-        from sim.validate import Validator
+        from sim.hand.model import Hand
+        from sim.validate.validator import Validator
+        from sim.world.objects import load_object
+        from sim.world.render import save_png
 
         d = entry.demo
         img = Validator(Hand.load(d.hand), load_object(d.object)).render(d.grasp, *THUMB_SIZE)

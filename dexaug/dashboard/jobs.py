@@ -163,7 +163,7 @@ def run_augmentation(payload: tuple[Any, str, Any], progress: Callable[[str, int
                      ) -> dict[str, Any]:
     """The dashboard's job: ``augment_demo(demo, out_root, opts)``; returns the
     summary as written to ``summary.json`` plus ``skipped``."""
-    from augment.pipeline import augment_demo
+    from dexaug.pipeline.run import augment_demo
 
     demo, out_root, opts = payload
     summary = augment_demo(demo, out_root, opts, progress=progress)

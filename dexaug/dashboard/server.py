@@ -33,9 +33,9 @@ from typing import Any
 
 from aiohttp import web
 
-from augment.pipeline import AugmentOptions
 from dexaug.dashboard.catalog import Catalog, result_view
 from dexaug.dashboard.jobs import JobQueue, JobTarget, run_augmentation
+from dexaug.pipeline.options import AugmentOptions
 from sim.errors import DexaugError
 
 __all__ = ["Dashboard", "DashboardConfig", "DashboardError"]

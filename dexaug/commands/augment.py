@@ -1,0 +1,321 @@
+"""Subcommands of the augmentation half: ``generate``, ``augment``, ``rerecord``.
+
+Each parses its arguments, calls ``augment`` / ``teleop``, and reports with rich progress bars
+and tables; libraries never print.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from rich.console import Console
+from rich.markup import escape
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+if TYPE_CHECKING:
+    from dexaug.pipeline.options import AugmentOptions
+    from dexaug.pipeline.summary import DemoSummary
+
+from dexaug.commands.registry import command
+
+log = logging.getLogger(__name__)
+
+
+def progress_bars(console: Console) -> Progress:
+    return Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                    TimeElapsedColumn(), console=console, transient=False)
+
+
+def stage_ticker(bar: Progress) -> Callable[[str, int, int], None]:
+    """A pipeline progress callback that keeps one bar per stage (workspace, fsg, …)."""
+    tasks: dict[str, int] = {}
+
+    def tick(stage: str, done: int, total: int) -> None:
+        if stage not in tasks:
+            tasks[stage] = bar.add_task(stage, total=total)
+        bar.update(tasks[stage], completed=done, total=total)
+
+    return tick
+
+
+def _generation_args(p: argparse.ArgumentParser) -> None:
+    """Options shared by ``generate`` and ``augment``."""
+    p.add_argument("--n", type=int, default=200, help="grasps wanted per demo / object")
+    p.add_argument("--validate", choices=("lift-drop", "six-dir", "none"), default="lift-drop",
+                   help="simulated validation of every grasp (default lift-drop)")
+    p.add_argument("--table", action="store_true", help="object on a table: keep the palm and "
+                   "fingertips above it")
+    p.add_argument("--no-linkpen", action="store_true", help="skip the link penetration check")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
+    p.add_argument("--budget", type=float, default=120.0, metavar="SECONDS",
+                   help="FSG time budget: the search stops there and reports the shortfall")
+
+
+def _generate_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--hand", default="shadow_right", help="hand config name (configs/hands)")
+    p.add_argument("--object", required=True, help="object name (YCB id/name or primitive)")
+    p.add_argument("--demo", help="centre the workspace on a demonstration: a demo .json, a "
+                   "session .mcap, or a reference grasp name")
+    p.add_argument("--fingers", type=int, help="use at most this many fingers (priority order)")
+    p.add_argument("--no-aff", action="store_true", help="sample the whole object cloud, not "
+                   "its graspable part (the paper's plain FSG)")
+    p.add_argument("--no-finiter", action="store_true", help="no finger iteration")
+    p.add_argument("--out", type=Path, default=Path("grasps.h5"), help="HDF5 dataset to write "
+                   "(appended when it exists)")
+    _generation_args(p)
+
+
+@command("generate", _generate_args)
+def generate_cmd(args: argparse.Namespace, console: Console) -> int:
+    """Generate grasps of one object with FSG (paper §4) and write them to an HDF5 dataset.
+
+    The workspace is the hand's manual one (paper Table 1), or centred on --demo (and then only
+    the fingers that touched in the demo are used, as in the paper's augmentation). Every grasp
+    is validated in MuJoCo (--validate); passing grasps go to the main table, failing ones to
+    the side table "rejected" with their reason. A shortfall (fewer grasps than --n within
+    --budget) is reported, never a hang.
+    """
+    from augment import dataset
+    from augment.autows.workspace import DemoSeed, build_workspace
+    from augment.object_cloud import object_cloud
+    from dexaug.pipeline.demos import resolve_demo
+    from dexaug.pipeline.run import demo_fingers, generate_grasps
+    from sim.hand.model import Hand
+    from sim.validate.batch import default_workers, validate_many
+    from sim.world.objects import load_object
+
+    hand = Hand.load(args.hand)
+    obj = load_object(args.object)
+    workers = args.workers or default_workers()
+    demo = resolve_demo(args.demo, hand.name) if args.demo else None
+    if demo is not None and demo.object != obj.name:
+        console.print(f"[yellow]note: demo {demo.id} grasps {demo.object}, generating for "
+                      f"{obj.name}")
+    ws = build_workspace(hand, demo=DemoSeed.from_demo(demo) if demo else None)
+    with progress_bars(console) as bar:
+        task = bar.add_task(f"FSG {obj.name}", total=args.n)
+        res = generate_grasps(hand, object_cloud(obj), ws, n=args.n, fingers=args.fingers,
+                       finger_names=demo_fingers(demo) if demo else None,
+                       table=args.table, use_affordance=not args.no_aff,
+                       finger_iteration=not args.no_finiter,
+                       link_penetration=not args.no_linkpen, seed=args.seed,
+                       time_budget_s=args.budget, workers=workers)
+        bar.update(task, completed=len(res.grasps))
+        results = None
+        if args.validate != "none" and res.grasps:
+            vt = bar.add_task(f"validate {args.validate}", total=len(res.grasps))
+            results = validate_many(hand.name, obj.name, [g.grasp for g in res.grasps],
+                                    args.validate, workers=workers,
+                                    progress=lambda k: bar.update(vt, completed=k))
+    table = dataset.from_fsg(res.grasps, hand.joint_names, hand.finger_names, results,
+                             demo_id=demo.id if demo else "",
+                             attrs={"hand": hand.name, "seed": args.seed,
+                                    "protocol": args.validate},
+                             split_rejected=results is not None)
+    dataset.append(args.out, {obj.name: table})
+    per = res.elapsed_s / len(res.grasps) if res.grasps else float("nan")
+    console.print(f"FSG: {len(res.grasps)}/{args.n} grasps in {res.elapsed_s:.2f} s "
+                  f"({per:.3f} s/grasp, stopped: {res.stopped}; finger sets "
+                  f"{[len(s) for s in res.finger_sets]})")
+    if res.shortfall:
+        console.print(f"[yellow]shortfall: {res.shortfall} grasps ({res.stopped}); rejections "
+                      f"{ {k: v for k, v in res.stats.items() if not k.startswith(('pairs', 'usable'))} }")
+    if results is not None:
+        console.print(f"{args.validate}: {len(table)} of {len(results)} passed")
+    console.print(f"wrote {args.out}")
+    return 0
+
+
+def _augment_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("inputs", nargs="*", type=Path, metavar="SESSION",
+                   help="recorded sessions (.mcap) or demo files (.json)")
+    p.add_argument("--out", type=Path, default=Path("datasets"),
+                   help="output folder: one sub-folder per demo (default ./datasets)")
+    p.add_argument("--watch", type=Path, metavar="DIR", help="keep watching DIR and augment "
+                   "each new session once its recorder has closed it")
+    p.add_argument("--poll", type=float, default=2.0, help="--watch: seconds between scans")
+    p.add_argument("--force", action="store_true", help="redo demos that are already finished")
+    p.add_argument("--gallery", type=int, default=6, help="grasps rendered in each report")
+    _generation_args(p)
+
+
+def _augment_options(args: argparse.Namespace) -> AugmentOptions:
+    from dexaug.pipeline.options import AugmentOptions
+    from sim.validate.batch import default_workers
+
+    return AugmentOptions(n=args.n, validate=None if args.validate == "none" else args.validate,
+                          link_penetration=not args.no_linkpen, table=args.table,
+                          seed=args.seed, workers=args.workers or default_workers(),
+                          time_budget_s=args.budget, gallery=args.gallery)
+
+
+@command("augment", _augment_args)
+def augment_cmd(args: argparse.Namespace, console: Console) -> int:
+    """Augment recorded demonstrations: session → demo → AutoWS → FSG → validation → dataset.
+
+    Each grasp demonstration found in a session (stable multi-fingertip contact or a
+    grasp_mark) is expanded into --n grasps; every grasp is validated in MuJoCo; per demo the
+    output folder gets grasps.h5 (validated grasps, rejected ones in a side table),
+    report.html and summary.json. Re-running skips finished demos; --watch DIR augments new
+    sessions as they are recorded. A session without a usable grasp, object or hand is
+    reported with the reason and the others go on (exit status 1 if any failed).
+    """
+    from dexaug.pipeline.run import augment_demo, augment_session
+    from sim.demo import DemoError, load_demo
+    from sim.errors import DexaugError
+
+    if not args.inputs and not args.watch:
+        console.print("[red]error:[/] give sessions to augment or --watch DIR")
+        return 2
+    opts = _augment_options(args)
+    failed = 0
+    rows = []
+    with progress_bars(console) as bar:
+        def one(path: Path) -> None:
+            nonlocal failed
+            tick = stage_ticker(bar)
+            try:
+                if path.suffix == ".json":
+                    summaries = [augment_demo(load_demo(path), args.out, opts, progress=tick,
+                                              force=args.force)]
+                else:
+                    summaries = augment_session(path, args.out, opts, progress=tick,
+                                                force=args.force)
+            except (DemoError, DexaugError) as exc:
+                failed += 1
+                text = str(exc) if str(path) in str(exc) else f"{path}: {exc}"
+                console.print(f"[red]{escape(text)}", highlight=False)
+                return
+            for s in summaries:
+                rows.append(s)
+                state = "skipped (done)" if s.skipped else "done"
+                console.print(f"{s.demo_id}: {s.passed}/{s.generated} passed, {state}; "
+                              f"report {s.report}")
+
+        for path in args.inputs:
+            one(path)
+        if args.watch:
+            _watch(args.watch, args.poll, one, console)
+    _summary_table(console, rows)
+    return 1 if failed else 0
+
+
+def _watch(folder: Path, poll_s: float, handle: Callable[[Path], None],
+           console: Console) -> None:
+    """Augment each ``*.mcap`` in ``folder`` once its recorder closed it (a file still being
+    written reads as truncated), until Ctrl-C."""
+    from teleop.record.session import SessionError, open_session
+
+    seen: set[Path] = set()
+    incomplete: dict[Path, tuple[int, int]] = {}   # (size, mtime) when last found unfinished
+    console.print(f"watching {folder} for finished sessions (Ctrl-C to stop)")
+    try:
+        while True:
+            for path in sorted(folder.glob("*.mcap")):
+                if path in seen:
+                    continue
+                st = path.stat()
+                if incomplete.get(path) == (st.st_size, st.st_mtime_ns):
+                    continue              # unchanged since it read as unfinished: no re-scan
+                try:
+                    unfinished = open_session(path).truncated    # still recording
+                except SessionError:
+                    unfinished = True
+                if unfinished:
+                    incomplete[path] = (st.st_size, st.st_mtime_ns)
+                    continue
+                seen.add(path)
+                incomplete.pop(path, None)
+                handle(path)
+            time.sleep(poll_s)
+    except KeyboardInterrupt:
+        console.print("stopped watching")
+
+
+def _summary_table(console: Console, rows: list[DemoSummary]) -> None:
+    if not rows:
+        return
+    t = Table(title="augmentation")
+    for col in ("demo", "object", "generated", "passed", "pass %", "FSG s", "validate s",
+                "validated/min", "report"):
+        t.add_column(col)
+    for s in rows:
+        rate = 100.0 * s.passed / s.generated if s.generated else 0.0
+        t.add_row(s.demo_id, s.object, str(s.generated), str(s.passed), f"{rate:.0f}",
+                  f"{s.timings_s.get('fsg', 0):.1f}", f"{s.timings_s.get('validate', 0):.1f}",
+                  f"{s.validated_per_min:.0f}", str(s.report))
+    console.print(t)
+
+
+def _rerecord_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("src", type=Path, help="a session with raw /hands input (e.g. from synth)")
+    p.add_argument("out", type=Path, help="the full session to write")
+    p.add_argument("--hand", help="hand config (default: the session's)")
+    p.add_argument("--object", help="object (default: the session's)")
+
+
+@command("rerecord", _rerecord_args)
+def rerecord_cmd(args: argparse.Namespace, console: Console) -> int:
+    """Replay a session's raw hand input through the bridge and record a full session.
+
+    The bridge runs on its own loopback zenoh peer in deterministic mode (every frame, fixed
+    physics steps), so a raw-input session (a synthetic operator's, an older recording) gains
+    simulated state and contacts; grasp marks are re-issued at the same frames.
+    """
+    from teleop.record.rerecord import rerecord
+
+    out = rerecord(args.src, args.out, hand=args.hand, object_name=args.object)
+    console.print(f"wrote {out}")
+    return 0
+
+
+def _bench_args(p: argparse.ArgumentParser) -> None:
+    from dexaug.bench_paper import OBJECTS, VARIANTS
+
+    p.add_argument("suite", choices=("paper",), help="paper: the reference paper's Tables 2, 3")
+    p.add_argument("--n", type=int, default=20, help="grasps requested per row")
+    p.add_argument("--budget", type=float, default=30.0, metavar="SECONDS",
+                   help="FSG time budget per row")
+    p.add_argument("--objects", nargs="*", default=list(OBJECTS))
+    p.add_argument("--methods", nargs="*", default=list(VARIANTS), choices=list(VARIANTS))
+    p.add_argument("--workspaces", nargs="*", default=["manual", "demo"],
+                   choices=["manual", "demo"])
+    p.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
+    p.add_argument("--no-six-dir", action="store_true", help="skip the six-dir validation")
+    p.add_argument("--out", type=Path, help="also write the Markdown table to this file")
+
+
+@command("bench", _bench_args)
+def bench_cmd(args: argparse.Namespace, console: Console) -> int:
+    """Benchmarks. `dexaug bench paper` measures the rows of the paper's Tables 2 and 3.
+
+    For 004, 005, 024, 043 and 062 with the Shadow Hand, without and with the committed
+    demonstrations (recordings/demos/), for FSG, FSG+Aff, FSG+Aff-FinIter and FSG+Aff+LinkPen:
+    time per result, GWS ε / volume and valid-ε % from simulated contacts, plus lift-drop and
+    six-dir pass rates, penetration and diversity; prints a Markdown table with the paper's
+    figures beside ours.
+    """
+    from dexaug.bench_paper import markdown, measure, paper_figures
+    from sim.io import write_bytes_atomic
+    from sim.validate.batch import default_workers
+
+    rows_total = len(args.objects) * len(args.methods) * len(args.workspaces)
+    with progress_bars(console) as bar:
+        task = bar.add_task("rows", total=rows_total)
+        rows = measure(args.objects, args.methods, args.workspaces, n=args.n,
+                       budget_s=args.budget, workers=args.workers or default_workers(),
+                       six_dir=not args.no_six_dir,
+                       on_row=lambda r: bar.advance(task))
+    table = markdown(rows, paper_figures())
+    console.print(table, markup=False, highlight=False, soft_wrap=True)
+    if args.out:
+        write_bytes_atomic(args.out, (table + "\n").encode())
+        console.print(f"wrote {args.out}")
+    return 0

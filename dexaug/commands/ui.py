@@ -1,0 +1,56 @@
+"""Subcommand ``ui``: the local dashboard (``dexaug.dashboard``).
+
+The augmentation options are the ``augment`` command's own (same flags, same meaning), so a
+demo augmented from the page and one augmented with ``dexaug augment`` under the same options
+share their results; only ``--n`` defaults lower, for a quicker first click.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import threading
+from pathlib import Path
+
+from rich.console import Console
+
+from dexaug.commands.augment import _augment_options, _generation_args
+from dexaug.commands.registry import command
+
+log = logging.getLogger(__name__)
+
+
+def _ui_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--sessions", type=Path, default=Path("recordings"), metavar="DIR",
+                   help="folder of recorded sessions (*.mcap; default ./recordings)")
+    p.add_argument("--out", type=Path, default=Path("datasets"),
+                   help="output folder: one sub-folder per demo (default ./datasets)")
+    p.add_argument("--host", default="127.0.0.1", help="listen address (default 127.0.0.1: "
+                   "this machine only)")
+    p.add_argument("--port", type=int, default=8765, help="listen port (default 8765)")
+    p.add_argument("--gallery", type=int, default=6, help="grasps rendered in each report")
+    _generation_args(p)
+    p.set_defaults(n=100)
+
+
+@command("ui", _ui_args)
+def ui_cmd(args: argparse.Namespace, console: Console) -> int:
+    """Serve the dashboard: sessions, their demos, one-click augmentation with live progress.
+
+    Lists every session of --sessions with its demos (thumbnail, object, fingers, time) or the
+    reason it has none; "Augment" runs demo → AutoWS → FSG → validation → dataset + report in
+    the background (one at a time), shows the progress, then the numbers and the report.
+    Demos already augmented with the same inputs show their results directly. Ctrl-C stops.
+    """
+    from dexaug.dashboard import Dashboard, DashboardConfig
+
+    cfg = DashboardConfig(sessions_dir=args.sessions, out_root=args.out,
+                          options=_augment_options(args), host=args.host, port=args.port)
+    with Dashboard(cfg) as dash:
+        url = dash.start()
+        console.print(f"dashboard on [bold]{url}[/] (Ctrl-C to stop)")
+        try:
+            threading.Event().wait()
+        except KeyboardInterrupt:
+            console.print("stopping")
+    return 0

@@ -1,0 +1,71 @@
+"""What one augmentation run does, and the key that says whether two runs are the same.
+
+Why a module of its own: the CLI, the dashboard and the pipeline all build and compare options,
+and the resume logic (:func:`run_key`) must hash exactly what changes results.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+from augment.fsg.sampler import AUGMENT_TOML
+from sim.demo import Demo, demo_to_json
+from sim.hand.config import hand_config_path
+from sim.validate.batch import default_workers
+from sim.validate.validator import VALIDATE_TOML
+
+__all__ = ["RESULT_CONFIGS", "AugmentOptions", "Progress", "demo_dir", "result_configs", "run_key"]
+
+#: progress(stage, done, total): stage is "workspace", "fsg", "validate", "report".
+Progress = Callable[[str, int, int], None]
+
+
+@dataclass(frozen=True)
+class AugmentOptions:
+    """What one augmentation run does. ``validate``: "lift-drop", "six-dir" or None (keep
+    every FSG grasp unvalidated); ``time_budget_s`` bounds FSG (wall seconds); ``gallery``
+    renders this many grasps for the report (0: no images)."""
+
+    n: int = 200
+    validate: str | None = "lift-drop"
+    link_penetration: bool = True
+    table: bool = False
+    seed: int = 0
+    workers: int = field(default_factory=default_workers)
+    time_budget_s: float = 120.0
+    gallery: int = 6
+
+
+#: the configuration files an augmentation's results depend on (besides the hand's own)
+RESULT_CONFIGS = (AUGMENT_TOML, VALIDATE_TOML)
+
+
+def result_configs(demo: Demo) -> dict[str, str]:
+    """``"config:<file name>"`` → text of each configuration file the stages read for ``demo``
+    (AutoWS and FSG parameters, the validator's, the hand's; "" when absent): read once per
+    run, hashed into :func:`run_key` and stored in the dataset as provenance."""
+    paths = (*RESULT_CONFIGS, hand_config_path(demo.hand))
+    return {f"config:{p.name}": p.read_text() if p.is_file() else "" for p in paths}
+
+
+def run_key(demo: Demo, opts: AugmentOptions, configs: dict[str, str] | None = None) -> str:
+    """Hash of everything that changes an augmentation's results: the options (not
+    ``workers`` or ``gallery``), the demo itself, and the configuration texts
+    (:func:`result_configs`, read now unless given). A re-run skips a demo only when this
+    matches, so a re-recorded demo or an edited config is redone, not served stale."""
+    options = asdict(opts)
+    options.pop("workers")
+    options.pop("gallery")
+    doc = {"options": options, "demo": demo_to_json(demo),
+           "configs": configs if configs is not None else result_configs(demo)}
+    return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def demo_dir(out_root: Path | str, demo: Demo) -> Path:
+    """The folder of ``demo``'s results: its id with path-unsafe characters replaced."""
+    return Path(out_root) / re.sub(r"[^A-Za-z0-9_.@-]+", "_", demo.id)

@@ -1,0 +1,173 @@
+"""One demonstration in, a validated grasp dataset and a report out (DESIGN §1, lower half).
+
+demo → demonstration-centred AutoWS clouds → FSG → MuJoCo validation of every grasp → HDF5
+dataset (passing grasps in the main table, rejected ones with their failure in the side table)
+→ report. Each demo gets its own folder ``<out>/<demo id>/`` holding ``grasps.h5``,
+``report.html`` with its images, and ``summary.json``, which is written last: a folder with a
+summary made from the same demo, options and configs (:func:`run_key`) is finished, and
+re-running skips it (resumable); a run
+interrupted before the summary leaves only complete files (every write is atomic), and the next
+run redoes that demo.
+
+Why per-demo folders and not one growing file: demos are independent units of work (the
+dashboard and ``--watch`` start them one by one), and a failure in one never touches another's
+results. ``augment.dataset.load`` reads any of them; ``merge_datasets`` joins them.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import time
+from collections import Counter
+from collections.abc import Callable
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from augment import dataset
+from augment.autows.workspace import DemoSeed, WorkspaceCloud, build_workspace
+from augment.fsg.sampler import FsgResult, generate
+from augment.object_cloud import ObjectCloud, object_cloud
+from dexaug.pipeline.options import AugmentOptions, Progress, demo_dir, result_configs, run_key
+from dexaug.pipeline.report import write_report
+from dexaug.pipeline.summary import DemoSummary, finished
+from sim.demo import Demo
+from sim.hand.model import Hand
+from sim.io import write_bytes_atomic
+from sim.pools import persistent_pool
+from sim.validate.batch import ScenePenetration, validate_many
+from sim.world.objects import ObjectAsset, load_object
+from teleop.record.demos import extract_demos
+
+__all__ = ["augment_demo", "augment_session", "demo_fingers", "generate_grasps"]
+
+log = logging.getLogger(__name__)
+
+#: modules the shared worker pool preloads: FSG's sampler and the validator it checks with
+POOL_PRELOAD = ("augment.fsg.sampler", "sim.validate.batch")
+
+
+def generate_grasps(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: WorkspaceCloud, *,
+                    link_penetration: bool = True, workers: int = 1, **kwargs: Any) -> FsgResult:
+    """FSG (:func:`augment.fsg.sampler.generate`) wired to this project's validator: with
+    ``link_penetration``, the point-cloud checks end with the exact check in the validator's
+    scene, so no output fails validation for a penetration the simulator sees. Every caller
+    above ``augment`` (CLI, dashboard, benchmarks) generates through here."""
+    exact = ScenePenetration.of(hand.name, obj.name) if link_penetration else None
+    if workers > 1:
+        persistent_pool(workers, preload=POOL_PRELOAD)
+    return generate(hand, obj, workspace, link_penetration=link_penetration,
+                    exact_penetration=exact, workers=workers, **kwargs)
+
+
+def augment_demo(demo: Demo, out_root: Path | str, opts: AugmentOptions | None = None, *,
+                 progress: Progress | None = None, force: bool = False) -> DemoSummary:
+    """Augment one demo into ``demo_dir(out_root, demo)`` (module docstring); a folder already
+    finished with the same inputs (:func:`run_key`) is returned as is unless ``force``.
+
+    Raises:
+        DexaugError subclasses: the hand is not installed, the object cannot be loaded, bad
+            options (each message names what and where).
+    """
+    opts = opts or AugmentOptions()
+    folder = demo_dir(out_root, demo)
+    if not force and (done := finished(folder, demo, opts)) is not None:
+        log.info("%s: already augmented (%s), skipping", demo.id, folder)
+        return done
+    tick = progress or (lambda stage, done, total: None)
+    configs = result_configs(demo)   # the inputs as they are now, before any stage reads them
+    key = run_key(demo, opts, configs)
+    timings: dict[str, float] = {}
+    t0 = time.perf_counter()
+    hand = Hand.load(demo.hand)
+    obj = load_object(demo.object)
+    cloud = object_cloud(obj)
+    tick("workspace", 0, 1)
+    ws = build_workspace(hand, demo=DemoSeed.from_demo(demo))
+    tick("workspace", 1, 1)
+    timings["workspace"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    tick("fsg", 0, opts.n)
+    res = generate_grasps(hand, cloud, ws, n=opts.n, table=opts.table, finger_names=demo_fingers(demo),
+                   link_penetration=opts.link_penetration, seed=opts.seed,
+                   time_budget_s=opts.time_budget_s, workers=opts.workers)
+    tick("fsg", len(res.grasps), opts.n)
+    timings["fsg"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    results = None
+    if opts.validate and res.grasps:
+        total = len(res.grasps)
+        results = validate_many(hand.name, obj.name, [g.grasp for g in res.grasps],
+                                opts.validate, workers=opts.workers,
+                                progress=lambda k: tick("validate", k, total))
+    timings["validate"] = time.perf_counter() - t0
+
+    provenance = {"hand": hand.name, "demo_source": str(demo.source), "seed": opts.seed,
+                  "options": json.dumps(asdict(opts)), "run_key": key, **configs,
+                  "protocol": opts.validate or "none", "fsg_stopped": res.stopped}
+    table = dataset.from_fsg(res.grasps, hand.joint_names, hand.finger_names, results,
+                             demo_id=demo.id, attrs=provenance,
+                             split_rejected=results is not None)
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "summary.json").unlink(missing_ok=True)   # not finished until rewritten
+    data_path = folder / "grasps.h5"
+    dataset.save(data_path, {obj.name: table})
+    failures = Counter(str(r.failure) for r in results or [] if not r.passed)
+    kept = table
+    sim_eps = np.asarray(kept["sim_epsilon"], float)
+    closed = sim_eps[np.isfinite(sim_eps) & (sim_eps > 0)]
+    metrics = {"fsg_epsilon_mean": _mean(kept["gws"]), "fsg_volume_mean": _mean(kept["volume"]),
+               "sim_force_closure_pct": 100.0 * len(closed) / len(kept) if len(kept) else 0.0,
+               "sim_epsilon_mean_closed": _mean(closed),
+               "displacement_mm_mean": 1e3 * _mean(kept["displacement_m"])}
+    summary = DemoSummary(
+        demo_id=demo.id, hand=hand.name, object=obj.name, source=str(demo.source),
+        run_key=key, requested=opts.n, generated=len(res.grasps),
+        passed=len(kept) if results is not None else 0, failures=dict(failures),
+        fsg_stopped=res.stopped, timings_s=timings, metrics=metrics, dataset=str(data_path),
+        report=None)
+    if opts.gallery > 0:
+        t0 = time.perf_counter()
+        tick("report", 0, 1)
+        summary.report = str(write_report(folder, demo, hand, obj, table, summary,
+                                          np.asarray(cloud.points), gallery=opts.gallery))
+        tick("report", 1, 1)
+        timings["report"] = time.perf_counter() - t0
+    write_bytes_atomic(folder / "summary.json",
+                       (json.dumps(summary.to_json(), indent=1) + "\n").encode())
+    log.info("%s: %d of %d generated grasps passed %s (%s)", demo.id, summary.passed,
+             summary.generated, opts.validate, folder)
+    return summary
+
+
+def demo_fingers(demo: Demo) -> tuple[str, ...] | None:
+    """The fingers augmented grasps use: those that touched in the demo (paper §5.2), or all
+    when fewer than two did (a lone mark on a one-finger touch)."""
+    return demo.fingers if len(demo.fingers) >= 2 else None
+
+
+def _mean(x: np.ndarray) -> float:
+    x = np.asarray(x, float)
+    x = x[np.isfinite(x)]
+    return float(x.mean()) if len(x) else float("nan")
+
+
+def augment_session(path: Path | str, out_root: Path | str, opts: AugmentOptions | None = None,
+                    *, progress: Progress | None = None, force: bool = False,
+                    on_demo: Callable[[Demo], None] | None = None) -> list[DemoSummary]:
+    """Every demo of the session at ``path`` (``teleop.record.demos.extract_demos``), augmented.
+
+    Raises:
+        sim.demo.DemoError: the session holds no usable grasp (the reason is the message).
+    """
+    out = []
+    for demo in extract_demos(path):
+        if on_demo is not None:
+            on_demo(demo)
+        out.append(augment_demo(demo, out_root, opts, progress=progress, force=force))
+    return out

@@ -1,0 +1,111 @@
+"""A grasp demonstration: the neutral record between the recorder and the augmenter.
+
+Why it lives here, below both ``teleop`` and ``augment``: demos are made by extraction from a
+recorded session (:mod:`teleop.record.demos`), by import of a static grasp pose, or from a
+reference grasp, and consumed by AutoWS and FSG; neither side should import the other to
+exchange one. The JSON form (:func:`save_demo`/:func:`load_demo`) is what ``recordings/demos/``
+holds.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sim.errors import DexaugError
+from sim.grasp import Grasp
+from sim.io import write_bytes_atomic
+
+__all__ = ["DEMO_FORMAT", "Demo", "DemoError", "demo_to_json", "load_demo", "save_demo"]
+
+DEMO_FORMAT = "dexaug-demo-1"
+
+
+class DemoError(DexaugError):
+    """A session or file holds no usable grasp demonstration; the message says why."""
+
+
+@dataclass(frozen=True, eq=False)
+class Demo:
+    """One grasp demonstration.
+
+    Attributes:
+        id: ``<session stem>@<seconds into the session>`` (provenance, cache keys).
+        hand, object: hand config and object names.
+        joints: (nq,) simulated joint angles at the grasp moment, radians, model order.
+        palm_pos_m, palm_quat_wxyz: frame_palm in the object frame.
+        tip_contacts: finger → (3,) mean contact point in that finger's tip body frame, metres
+            (fingers that did not touch are absent).
+        contact_points_obj: finger → (k,3) the contact points in the object frame, metres.
+        source: the session file; time_s: seconds from the session start; how: "grasp_mark"
+            or "stable contact"; duration_s: length of the stable run (0 for a lone mark).
+    """
+
+    id: str
+    hand: str
+    object: str
+    joints: np.ndarray
+    palm_pos_m: np.ndarray
+    palm_quat_wxyz: np.ndarray
+    tip_contacts: dict[str, np.ndarray]
+    contact_points_obj: dict[str, np.ndarray]
+    source: Path
+    time_s: float
+    how: str
+    duration_s: float = 0.0
+    fingers: tuple[str, ...] = field(default=())
+
+    @property
+    def grasp(self) -> Grasp:
+        return Grasp.from_arrays(self.palm_pos_m, self.palm_quat_wxyz, self.joints)
+
+
+def demo_to_json(demo: Demo) -> dict[str, Any]:
+    """``demo`` as the plain data :func:`save_demo` writes (lists, numbers, strings)."""
+    return {"format": DEMO_FORMAT, "id": demo.id, "hand": demo.hand, "object": demo.object,
+           "joints_rad": demo.joints.tolist(), "palm_pos_m": demo.palm_pos_m.tolist(),
+           "palm_quat_wxyz": demo.palm_quat_wxyz.tolist(),
+           "tip_contacts_m": {k: v.tolist() for k, v in demo.tip_contacts.items()},
+           "contact_points_obj_m": {k: v.tolist() for k, v in demo.contact_points_obj.items()},
+           "source": str(demo.source), "time_s": demo.time_s, "how": demo.how,
+           "duration_s": demo.duration_s, "fingers": list(demo.fingers)}
+
+
+def save_demo(path: Path | str, demo: Demo) -> None:
+    """Write ``demo`` as JSON (atomically): small, diffable, committable."""
+    write_bytes_atomic(path, (json.dumps(demo_to_json(demo), indent=1) + "\n").encode())
+
+
+def load_demo(path: Path | str) -> Demo:
+    """Read a demo written by :func:`save_demo`; errors name the file and the field."""
+    path = Path(path)
+    try:
+        doc = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise DemoError(f"{path}: not a readable demo file ({exc})") from None
+    if not isinstance(doc, dict) or doc.get("format") != DEMO_FORMAT:
+        raise DemoError(f"{path}: field 'format' must be {DEMO_FORMAT!r}")
+
+    def arr(key: str, n: int | None) -> np.ndarray:
+        a = np.asarray(doc.get(key, []), float)
+        if a.ndim != 1 or (n is not None and len(a) != n) or not np.isfinite(a).all():
+            raise DemoError(f"{path}: field {key!r} must be {n or 'a list of'} finite numbers")
+        return a
+
+    try:
+        return Demo(id=str(doc["id"]), hand=str(doc["hand"]), object=str(doc["object"]),
+                    joints=arr("joints_rad", None), palm_pos_m=arr("palm_pos_m", 3),
+                    palm_quat_wxyz=arr("palm_quat_wxyz", 4),
+                    tip_contacts={k: np.asarray(v, float)
+                                  for k, v in doc.get("tip_contacts_m", {}).items()},
+                    contact_points_obj={k: np.asarray(v, float).reshape(-1, 3)
+                                        for k, v in doc.get("contact_points_obj_m", {}).items()},
+                    source=Path(doc.get("source", path)), time_s=float(doc.get("time_s", 0.0)),
+                    how=str(doc.get("how", "file")), duration_s=float(doc.get("duration_s", 0)),
+                    fingers=tuple(doc.get("fingers", ())))
+    except KeyError as exc:
+        raise DemoError(f"{path}: missing field {exc}") from None

@@ -1,0 +1,191 @@
+"""Hand descriptions read from ``configs/hands/<name>.toml``.
+
+Everything hand-specific (which bodies are fingertips, which joints form a finger, coupling,
+fingertip vectors, palm frame) lives in these files, so the rest of dexaug works for any hand
+MuJoCo can load. This module only parses and checks the file on its own terms; ``sim.hand.model``
+checks it against the model.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from sim.config import Section, load_toml
+from sim.errors import ConfigError
+from sim.paths import CONFIG_DIR
+
+HANDS_DIR = CONFIG_DIR / "hands"
+POSTURES = ("open_pose", "preshape_pose", "close_pose")
+
+
+@dataclass(frozen=True)
+class FingerConfig:
+    """One finger: its chain of links (proximal to tip), joints and fingertip description.
+
+    ``v_f`` (fingertip → pulp, the contact side) and ``v_u`` (along the finger toward its tip)
+    are unit vectors in the fingertip body frame; ``tip_site_pos`` is the pulp point in metres
+    in that frame. ``coupled_to`` maps a follower joint to the joint it copies (the paper's
+    FJ1 = FJ2). ``ranges_rad`` holds the manual AutoWS ranges of the independent joints.
+    """
+
+    name: str
+    tip_body: str
+    tip_mesh: str
+    links: tuple[str, ...]
+    joints: tuple[str, ...]
+    coupled_to: dict[str, tuple[str, float]]
+    v_f: np.ndarray
+    v_u: np.ndarray
+    tip_site_pos: np.ndarray
+    ranges_rad: dict[str, tuple[float, float]]
+
+    @property
+    def site_name(self) -> str:
+        return f"dexaug_{self.name}_tip"
+
+    @property
+    def independent_joints(self) -> tuple[str, ...]:
+        return tuple(j for j in self.joints if j not in self.coupled_to)
+
+
+@dataclass(frozen=True)
+class PalmConfig:
+    """``frame_palm``: a body plus a fixed offset; +y points out of the palm face toward the
+    object. The palm box (centre, half extents in metres, in frame_palm) is FSG's palm check."""
+
+    body: str
+    pos: np.ndarray
+    quat_wxyz: np.ndarray
+    box_center: np.ndarray
+    box_half_extents: np.ndarray
+
+
+@dataclass(frozen=True)
+class HandConfig:
+    name: str
+    file: Path
+    menagerie: str | None
+    entry: str | None
+    model_path: Path | None
+    root_body: str | None
+    palm: PalmConfig
+    fingers: tuple[FingerConfig, ...]
+    postures: dict[str, dict[str, float]] = field(default_factory=dict)
+
+    def finger(self, name: str) -> FingerConfig:
+        for f in self.fingers:
+            if f.name == name:
+                return f
+        raise ConfigError(f"{self.file}: no finger named {name!r}; fingers are "
+                          f"{[f.name for f in self.fingers]}")
+
+
+def _unit(sec: Section, key: str) -> np.ndarray:
+    v = np.array(sec.floats(key, 3))
+    n = np.linalg.norm(v)
+    if n < 1e-9:
+        raise sec.error(key, "expected a non-zero 3-vector")
+    return v / n
+
+
+def _finger(sec: Section) -> FingerConfig:
+    sec.reject_unknown({"name", "tip_body", "tip_mesh", "links", "joints", "coupled_to", "v_f",
+                        "v_u", "tip_site_pos", "ranges_deg"})
+    joints = tuple(sec.strs("joints"))
+    if not joints:
+        raise sec.error("joints", "expected at least one joint")
+    coupled_sec = sec.section("coupled_to", {})
+    coupled: dict[str, tuple[str, float]] = {}
+    for key, value in coupled_sec.data.items():
+        if isinstance(value, str):
+            coupled[key] = (value, 1.0)
+        elif (isinstance(value, list) and len(value) == 2 and isinstance(value[0], str)
+              and isinstance(value[1], int | float) and not isinstance(value[1], bool)):
+            coupled[key] = (value[0], float(value[1]))
+        else:
+            raise coupled_sec.error(key, 'expected a leader joint name or [leader, coefficient], '
+                                    f'got {value!r}')
+    for follower, (leader, _) in coupled.items():
+        if follower not in joints or leader not in joints:
+            raise coupled_sec.error(follower, f"both {follower!r} and {leader!r} must be among "
+                                    f"this finger's joints {list(joints)}")
+    v_f, v_u = _unit(sec, "v_f"), _unit(sec, "v_u")
+    if np.linalg.norm(np.cross(v_f, v_u)) < 1e-6:
+        raise sec.error("v_u", "v_f and v_u are parallel; v_f must point to the pulp and v_u "
+                        "along the finger")
+    ranges_sec = sec.section("ranges_deg", {})
+    ranges: dict[str, tuple[float, float]] = {}
+    for joint in ranges_sec.data:
+        lo, hi = ranges_sec.floats(joint, 2)
+        if joint not in joints or joint in coupled:
+            raise ranges_sec.error(joint, "range given for a joint that is not an independent "
+                                   f"joint of this finger ({[j for j in joints if j not in coupled]})")
+        if lo > hi:
+            raise ranges_sec.error(joint, f"empty range [{lo}, {hi}]: expected lower <= upper")
+        ranges[joint] = (float(np.deg2rad(lo)), float(np.deg2rad(hi)))
+    links = tuple(sec.strs("links"))
+    tip_body = sec.str("tip_body")
+    if not links or links[-1] != tip_body:
+        raise sec.error("links", f"expected the finger's link bodies ending with tip_body "
+                        f"{tip_body!r}")
+    return FingerConfig(
+        name=sec.str("name"), tip_body=tip_body, tip_mesh=sec.str("tip_mesh"), links=links,
+        joints=joints, coupled_to=coupled, v_f=v_f, v_u=v_u,
+        tip_site_pos=np.array(sec.floats("tip_site_pos", 3)), ranges_rad=ranges)
+
+
+def hand_config_path(name_or_path: str | Path) -> Path:
+    """The TOML file of a hand given by name (``configs/hands/<name>.toml``) or by path."""
+    path = Path(name_or_path)
+    return path if path.suffix == ".toml" else HANDS_DIR / f"{name_or_path}.toml"
+
+
+def load_hand_config(name_or_path: str | Path) -> HandConfig:
+    """Load ``configs/hands/<name>.toml`` (or a TOML path) and check it is self-consistent."""
+    path = hand_config_path(name_or_path)
+    if Path(name_or_path).suffix != ".toml" and not path.is_file():
+        known = sorted(p.stem for p in HANDS_DIR.glob("*.toml"))
+        raise ConfigError(f"unknown hand {name_or_path!r}: no {path}; known hands: {known}")
+    root = load_toml(path)
+    root.reject_unknown({"model", "palm", "fingers", "grasp"})
+    model = root.section("model")
+    model.reject_unknown({"menagerie", "entry", "path", "root_body"})
+    menagerie = model.str("menagerie", None)
+    model_path = model.str("path", None)
+    if (menagerie is None) == (model_path is None):
+        raise model.error(None, "expected exactly one of 'menagerie' (a Menagerie robot name) "
+                          "or 'path' (an MJCF file, relative to this config)")
+    palm = root.section("palm")
+    palm.reject_unknown({"body", "pos", "quat_wxyz", "box_center", "box_half_extents"})
+    quat = np.array(palm.floats("quat_wxyz", 4, [1.0, 0.0, 0.0, 0.0]))
+    if abs(np.linalg.norm(quat) - 1.0) > 1e-6:
+        raise palm.error("quat_wxyz", f"expected a unit quaternion, got norm {np.linalg.norm(quat)}")
+    half = np.array(palm.floats("box_half_extents", 3))
+    if (half <= 0).any():
+        raise palm.error("box_half_extents", "expected three positive half extents (metres)")
+    fingers = tuple(_finger(s) for s in root.sections("fingers"))
+    if not fingers:
+        raise root.error("fingers", "expected at least one [[fingers]] table")
+    names = [f.name for f in fingers]
+    if len(set(names)) != len(names):
+        raise root.error("fingers", f"finger names must be unique, got {names}")
+    grasp = root.section("grasp", {})
+    grasp.reject_unknown(set(POSTURES))
+    postures = {}
+    for key in POSTURES:
+        sec = grasp.section(key, {})
+        postures[key] = {k: sec.float(k) for k in sec.data}
+    return HandConfig(
+        name=path.stem, file=path, menagerie=menagerie, entry=model.str("entry", None),
+        model_path=(path.parent / model_path).resolve() if model_path else None,
+        root_body=model.str("root_body", None),
+        palm=PalmConfig(body=palm.str("body"), pos=np.array(palm.floats("pos", 3, [0.0] * 3)),
+                        quat_wxyz=quat / np.linalg.norm(quat),
+                        box_center=np.array(palm.floats("box_center", 3, [0.0] * 3)),
+                        box_half_extents=half),
+        fingers=fingers,
+        postures=postures,
+    )

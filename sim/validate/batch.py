@@ -1,0 +1,99 @@
+"""Validate many grasps on all cores.
+
+Workers come from a pool kept for the life of the process (:mod:`sim.pools`); each builds a
+validator (hand, object, scenes) once per (hand, object, config) and keeps it, so a pipeline that
+validates demo after demo pays neither process start-up nor scene compilation again. Grasps go
+out in chunks and results come back in input order, so the output does not depend on the number
+of workers (the simulation itself has no randomness).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from sim.errors import DexaugError
+from sim.grasp import Grasp
+from sim.hand.model import Hand
+from sim.pools import persistent_pool
+from sim.validate.validator import ValidateConfig, ValidationResult, Validator
+from sim.world.objects import load_object
+
+_VALIDATORS: dict[tuple[str, str, str | None], Validator] = {}
+
+
+def cached_validator(hand: str, obj: str, config_path: str | None = None) -> Validator:
+    """The validator of (hand name, object name, config file) in this process, built once."""
+    key = (hand, obj, config_path)
+    if key not in _VALIDATORS:
+        config = ValidateConfig.load(config_path) if config_path else ValidateConfig.load()
+        _VALIDATORS[key] = Validator(Hand.load(hand), load_object(obj), config)
+    return _VALIDATORS[key]
+
+
+@dataclass(frozen=True)
+class ScenePenetration:
+    """The exact penetration check a grasp sampler is given: the grasp placed in this
+    process's validator scene of (hand, object, config), one collision pass, no simulation.
+    Calling it says whether the hand penetrates the object deeper than the validator's
+    ``max_penetration_m`` allows. Plain names only, so it pickles to worker processes, whose
+    cached validator is then the one that validates next."""
+
+    hand: str
+    obj: str
+    config_path: str | None = None
+
+    @classmethod
+    def of(cls, hand: str, obj: str, config_path: str | None = None) -> ScenePenetration:
+        """The check for ``obj``, after making sure here that the object loads (a clear error
+        now, not one per worker later)."""
+        try:
+            load_object(obj)
+        except DexaugError as exc:
+            raise DexaugError(f"the exact penetration check places grasps in the validator's "
+                              f"scene, but object {obj!r} does not load: {exc}") from exc
+        return cls(hand, obj, config_path)
+
+    def __call__(self, grasp: Grasp) -> bool:
+        v = cached_validator(self.hand, self.obj, self.config_path)
+        return v.penetration_m(grasp) > v.config.common.max_penetration_m
+
+
+def _validate_chunk(args: tuple[str, str, str | None, Sequence[Grasp], str]
+                    ) -> list[ValidationResult]:
+    hand, obj, config_path, grasps, protocol = args
+    v = cached_validator(hand, obj, config_path)
+    return [v.validate(g, protocol) for g in grasps]
+
+
+def default_workers() -> int:
+    return max(len(os.sched_getaffinity(0)), 1)
+
+
+def validate_many(hand: str, obj: str, grasps: Sequence[Grasp], protocol: str = "lift-drop", *,
+                  workers: int | None = None, config_path: Path | None = None,
+                  progress: Callable[[int], None] | None = None) -> list[ValidationResult]:
+    """Validate ``grasps`` of hand config ``hand`` on object ``obj`` with ``workers`` processes
+    (default: all cores). ``progress(n_done)`` is called as results arrive."""
+    workers = workers or default_workers()
+    cfg = str(config_path) if config_path else None
+    if workers == 1 or len(grasps) <= 1:
+        v = cached_validator(hand, obj, cfg)
+        out = []
+        for g in grasps:
+            out.append(v.validate(g, protocol))
+            if progress:
+                progress(len(out))
+        return out
+    # small chunks: progress stays live and the two workers finish close together
+    size = max(1, min(16, len(grasps) // (workers * 4)))
+    chunks = [(hand, obj, cfg, list(grasps[i:i + size]), protocol)
+              for i in range(0, len(grasps), size)]
+    results: list[ValidationResult] = []
+    for part in persistent_pool(workers, preload=(__name__,)).map(_validate_chunk, chunks):
+        results.extend(part)
+        if progress:
+            progress(len(results))
+    return results

@@ -1,0 +1,595 @@
+"""Live ingest from a headset browser: the WebXR page, served over HTTPS, and its WebSocket.
+
+Why a web page and not an app: the Quest Browser speaks WebXR with hand tracking, so opening
+``https://<this machine>:8443/`` on the headset is the whole installation. The page
+(``teleop/input/web/``) sends both hands' 25 WebXR joint poses every XR frame over a WebSocket; this
+module converts them once with :func:`teleop.input.webxr.hand_frame_from_webxr` (XR → MuJoCo, PALM
+synthesised) and publishes :func:`teleop.messages.encode` bytes on ``dexaug/<rig>/hands``, so the
+bridge cannot tell a headset from a replay. The other way, it forwards the bridge's ``/view``
+JPEGs, a throttled summary of ``/state`` (contacts, held), ``/events`` and a 1 Hz ``status``
+(recording or not) to the page, and runs the page's control requests (start/stop recording,
+mark grasp) as ``dexaug/<rig>/control/<cmd>`` queries.
+
+One headset at a time: the first WebSocket that says ``hello`` owns the rig; a second one gets a
+``refused`` message (shown on its page) and is closed, and the bridge logs it. A reconnect with
+the same ``client_id`` (the page keeps it in sessionStorage) replaces a half-dead old socket
+instead of being refused. A lost socket is noticed by aiohttp's heartbeat; the page shows
+"disconnected, reconnecting" and retries.
+
+Hand-frame wire format (page → ingest, one binary WebSocket message per XR frame, little-endian)::
+
+    offset size type        field
+    0      4    bytes       magic b"DXW1"
+    4      4    uint32      seq (the page's XR frame counter)
+    8      8    float64     t_ms: XR frame time, epoch milliseconds (timeOrigin + frame time)
+    16     1    uint8       flags: bit0 left present, bit1 right present
+    17     3    -           padding
+    20     28   float32[7]  head pose: position (m), quaternion xyzw, XR reference space
+    48     800  float32     per present hand (left first): 25 × (p3, q4 xyzw, radius),
+                            WebXR joint order; NaN for a joint the runtime did not report
+
+Latency: each frame's ``receive_time_s`` is this process's wall clock (``time.time()``) when the
+WebSocket message arrived, so a subscriber on the same machine measures the ingest's added
+latency as ``time.time() − receive_time_s`` (``benchmarks/bench_web_ingest.py``).
+
+TLS: the Quest Browser only grants WebXR to secure origins. :func:`ensure_certificate` makes a
+self-signed certificate for ``localhost`` and this machine's addresses (kept and reused while it
+is valid and covers them, so the headset's one-time "proceed anyway" stays accepted); the
+alternative is plain HTTP to ``localhost`` through ``adb reverse tcp:8443 tcp:8443`` (a secure
+context too).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import datetime as dt
+import ipaddress
+import json
+import logging
+import os
+import socket
+import ssl
+import struct
+import threading
+import time
+import uuid
+from collections import Counter, deque
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import zenoh
+from aiohttp import WSMsgType, web
+
+from sim.errors import DexaugError
+from teleop import keys as zkeys
+from teleop.input.webxr import NUM_WEBXR_JOINTS, hand_frame_from_webxr
+from teleop.messages import HandFrame, MessageError, encode
+
+logger = logging.getLogger(__name__)
+Array = np.ndarray
+
+WS_MAGIC = b"DXW1"
+_WS_HEADER = struct.Struct("<4sIdB3x7f")
+WS_HEADER_SIZE = _WS_HEADER.size  # 48
+_HAND_FLOATS = NUM_WEBXR_JOINTS * 8
+WS_HAND_SIZE = 4 * _HAND_FLOATS  # 800
+#: Control commands the page may send (the rest of the control API stays on zenoh).
+PAGE_COMMANDS = ("start_recording", "stop_recording", "mark_grasp", "reset_object")
+_LOG_EVERY = 100
+
+
+class WebIngestError(DexaugError):
+    """The web ingest cannot start (port taken, certificate unreadable, page assets missing)."""
+
+
+# --- wire format ---------------------------------------------------------------------------------
+
+
+def pack_ws_frame(seq: int, t_ms: float, head_xr: Array, hands: Mapping[str, Array]) -> bytes:
+    """The page's binary frame (module docstring) from Python: ``head_xr`` (7,) p3 q4 xyzw;
+    ``hands`` side → (25, 8) rows p3 q4 radius. Tests and benchmarks speak the page's protocol
+    with it; the page itself builds the same bytes in ``app.js``."""
+    flags = (1 if "left" in hands else 0) | (2 if "right" in hands else 0)
+    parts = [_WS_HEADER.pack(WS_MAGIC, int(seq) & 0xFFFFFFFF, float(t_ms), flags,
+                             *np.asarray(head_xr, float).reshape(7).tolist())]
+    for side in ("left", "right"):
+        if side in hands:
+            parts.append(np.asarray(hands[side], "<f4").reshape(_HAND_FLOATS).tobytes())
+    return b"".join(parts)
+
+
+def parse_ws_frame(data: bytes, receive_time_s: float, *, source: str = "webxr") -> HandFrame:
+    """One binary message of the page → a :class:`HandFrame` (MuJoCo world, wxyz).
+
+    Raises :class:`MessageError` naming what is wrong (size, magic, flags); joint values the page
+    marked missing (NaN) become invalid joints, a hand without a wrist becomes untracked.
+    """
+    size = len(data)
+    if size < WS_HEADER_SIZE:
+        raise MessageError(f"web hand frame: {size} bytes, the header needs {WS_HEADER_SIZE}")
+    magic, seq, t_ms, flags, *head = _WS_HEADER.unpack_from(data, 0)
+    if magic != WS_MAGIC:
+        raise MessageError(f"web hand frame: magic {magic!r}, expected {WS_MAGIC!r}")
+    if flags & ~3:
+        raise MessageError(f"web hand frame: unknown flag bits {flags:#04x} (0x03 are used)")
+    sides = [s for s, bit in (("left", 1), ("right", 2)) if flags & bit]
+    expected = WS_HEADER_SIZE + len(sides) * WS_HAND_SIZE
+    if size != expected:
+        raise MessageError(f"web hand frame: {size} bytes, expected {expected} for "
+                           f"{len(sides)} hand(s)")
+    hands = {}
+    for k, side in enumerate(sides):
+        j = np.frombuffer(data, "<f4", _HAND_FLOATS, WS_HEADER_SIZE + k * WS_HAND_SIZE)
+        j = j.reshape(NUM_WEBXR_JOINTS, 8).astype(float)
+        hands[side] = (j[:, :3], j[:, 3:7], j[:, 7])
+    head_arr = np.asarray(head, float)
+    if not np.isfinite(head_arr).all():
+        raise MessageError(f"web hand frame: non-finite head pose {head_arr.tolist()}")
+    return hand_frame_from_webxr(int(seq), float(t_ms) * 1e-3, head_arr[:3], head_arr[3:],
+                                 hands, receive_time_s=receive_time_s, source=source)
+
+
+# --- TLS -----------------------------------------------------------------------------------------
+
+
+def local_addresses() -> list[str]:
+    """This machine's IPv4 addresses a headset on the LAN may use (loopback first). Uses no
+    network traffic: a UDP socket "connected" to a private address only picks a route."""
+    out = ["127.0.0.1"]
+    with contextlib.suppress(OSError):
+        for info in socket.getaddrinfo(socket.gethostname(), None, socket.AF_INET):
+            out.append(str(info[4][0]))
+    for probe in ("10.255.255.255", "192.168.255.255"):
+        with contextlib.suppress(OSError), socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+            s.connect((probe, 1))
+            out.append(s.getsockname()[0])
+    return list(dict.fromkeys(a for a in out if a != "0.0.0.0"))
+
+
+def default_cert_dir() -> Path:
+    """``$DEXAUG_CACHE_DIR/web-cert`` (default ``~/.cache/dexaug/web-cert``)."""
+    root = os.environ.get("DEXAUG_CACHE_DIR") or Path.home() / ".cache" / "dexaug"
+    return Path(root) / "web-cert"
+
+
+def ensure_certificate(cert_dir: Path | str | None = None, *, hosts: list[str] | None = None,
+                       valid_days: int = 825) -> tuple[Path, Path]:
+    """``(cert.pem, key.pem)`` in ``cert_dir``: a self-signed certificate for ``localhost``, the
+    machine's host name and ``hosts`` (default: :func:`local_addresses`). An existing one is
+    reused while it is valid for another day and covers those names, so a headset that accepted
+    it once is not asked again; otherwise a new one (EC P-256) replaces it."""
+    from cryptography import x509
+    from cryptography.hazmat.primitives import hashes, serialization
+    from cryptography.hazmat.primitives.asymmetric import ec
+    from cryptography.x509.oid import NameOID
+
+    d = Path(cert_dir) if cert_dir is not None else default_cert_dir()
+    cert_path, key_path = d / "cert.pem", d / "key.pem"
+    ips = hosts if hosts is not None else local_addresses()
+    dns = ["localhost", socket.gethostname()]
+    now = dt.datetime.now(dt.UTC)
+    if cert_path.is_file() and key_path.is_file():
+        try:
+            old = x509.load_pem_x509_certificate(cert_path.read_bytes())
+            san = old.extensions.get_extension_for_class(x509.SubjectAlternativeName).value
+            have = {str(v) for v in san.get_values_for_type(x509.IPAddress)} | \
+                set(san.get_values_for_type(x509.DNSName))
+            if old.not_valid_after_utc > now + dt.timedelta(days=1) and \
+                    set(ips) | set(dns) <= have:
+                return cert_path, key_path
+            logger.info("%s: does not cover %s or expires soon; making a new one", cert_path,
+                        sorted(set(ips) | set(dns) - have))
+        except (ValueError, x509.ExtensionNotFound) as exc:
+            logger.warning("%s: unreadable certificate (%s); making a new one", cert_path, exc)
+    d.mkdir(parents=True, exist_ok=True)
+    key = ec.generate_private_key(ec.SECP256R1())
+    name = x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, "dexaug bridge (self-signed)")])
+    alt = [x509.DNSName(n) for n in dns] + [x509.IPAddress(ipaddress.ip_address(a)) for a in ips]
+    cert = (x509.CertificateBuilder().subject_name(name).issuer_name(name)
+            .public_key(key.public_key()).serial_number(x509.random_serial_number())
+            .not_valid_before(now - dt.timedelta(minutes=5))
+            .not_valid_after(now + dt.timedelta(days=valid_days))
+            .add_extension(x509.SubjectAlternativeName(alt), critical=False)
+            .add_extension(x509.BasicConstraints(ca=False, path_length=None), critical=True)
+            .sign(key, hashes.SHA256()))
+    key_path.write_bytes(key.private_bytes(serialization.Encoding.PEM,
+                                           serialization.PrivateFormat.PKCS8,
+                                           serialization.NoEncryption()))
+    key_path.chmod(0o600)
+    cert_path.write_bytes(cert.public_bytes(serialization.Encoding.PEM))
+    logger.info("wrote a self-signed certificate %s for %s", cert_path, ", ".join(dns + ips))
+    return cert_path, key_path
+
+
+# --- the server ----------------------------------------------------------------------------------
+
+
+@dataclass
+class WebIngestConfig:
+    """Where and how the page is served.
+
+    ``host``/``port``: the HTTPS (or HTTP) listen address (port 0 picks a free one). ``tls``:
+    serve HTTPS with ``cert_dir``'s certificate (:func:`ensure_certificate`). ``dev_static``:
+    extra static folders served under ``/dev/<name>/`` — development and tests only (the IWER
+    bundle and a capture for the emulated headset); empty in normal use. ``state_rate_hz``: how
+    often a ``/state`` summary goes to the page. ``status_period_s``: how often the bridge's
+    status (recording or not) is polled for the page. ``heartbeat_s``: WebSocket ping period;
+    a headset silent for about twice that is considered gone.
+    """
+
+    host: str = "0.0.0.0"
+    port: int = 8443
+    tls: bool = True
+    cert_dir: Path | None = None
+    dev_static: dict[str, Path] = field(default_factory=dict)
+    state_rate_hz: float = 15.0
+    status_period_s: float = 1.0
+    heartbeat_s: float = 5.0
+    hello_timeout_s: float = 5.0
+
+
+class _Client:
+    """The connected headset: its socket and what is waiting to be sent to it. Only the newest
+    view JPEG is kept (a slow link skips frames instead of queueing seconds of video)."""
+
+    def __init__(self, ws: web.WebSocketResponse, client_id: str, peer: str) -> None:
+        self.ws, self.client_id, self.peer = ws, client_id, peer
+        self.view: bytes | None = None
+        self.texts: deque[str] = deque(maxlen=64)
+        self.wake = asyncio.Event()
+
+
+class WebIngest:
+    """The page server + WebSocket ↔ zenoh; see the module docstring.
+
+    ``session``: a zenoh session to use (the caller closes it); otherwise a loopback peer is
+    opened listening on ``listen_port`` and connecting to ``connect_ports`` and closed in
+    :meth:`close`. :meth:`start` serves in a background thread and returns the page URL.
+    """
+
+    def __init__(self, rig: str = "local", config: WebIngestConfig | None = None, *,
+                 session: zenoh.Session | None = None, listen_port: int | None = None,
+                 connect_ports: tuple[int, ...] = ()) -> None:
+        self.config = config or WebIngestConfig()
+        self.keys = zkeys.RigKeys(rig)
+        self.counts: Counter[str] = Counter()
+        #: seconds from the WebSocket message's arrival to ``put`` returning, per frame
+        self.ingest_latency_s: deque[float] = deque(maxlen=100_000)
+        self._lock = threading.Lock()
+        self._client: _Client | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._runner: web.AppRunner | None = None
+        self._thread: threading.Thread | None = None
+        self._stopped = threading.Event()
+        self._next_state_s = 0.0
+        self.port: int | None = None
+        self.url: str | None = None
+        self._own_session = session is None
+        self.session = session or zkeys.open_session(listen_port, list(connect_ports))
+        # reliable and blocking as replay: a recording must not lose frames to a busy moment
+        # (on loopback "blocking" is microseconds); express: no batching delay
+        self._pub = self.session.declare_publisher(
+            self.keys.hands, congestion_control=zenoh.CongestionControl.BLOCK,
+            reliability=zenoh.Reliability.RELIABLE, express=True)
+        self._subs = [self.session.declare_subscriber(self.keys.view, self._on_view),
+                      self.session.declare_subscriber(self.keys.state, self._on_state),
+                      self.session.declare_subscriber(self.keys.events, self._on_event)]
+
+    # ------------------------------------------------------------------------------ lifecycle
+
+    def _app(self) -> web.Application:
+        app = web.Application()
+        web_dir = resources.files("teleop.input") / "web"
+        page = Path(str(web_dir))
+        if not (page / "index.html").is_file():
+            raise WebIngestError(f"{page}: the page assets (index.html, app.js) are missing; "
+                                 "reinstall dexaug")
+        app.router.add_get("/ws", self._ws_handler)
+        async def index(_request: web.Request) -> web.FileResponse:
+            return web.FileResponse(page / "index.html")
+
+        async def no_icon(_request: web.Request) -> web.Response:
+            return web.Response(status=204)
+
+        app.router.add_get("/", index)
+        app.router.add_get("/favicon.ico", no_icon)
+        for name, path in self.config.dev_static.items():
+            if not Path(path).is_dir():
+                raise WebIngestError(f"dev_static[{name!r}]: {path} is not a folder")
+            app.router.add_static(f"/dev/{name}/", Path(path), follow_symlinks=True)
+        app.router.add_static("/static/", page)
+        return app
+
+    def _ssl_context(self) -> ssl.SSLContext | None:
+        if not self.config.tls:
+            return None
+        cert, key = ensure_certificate(self.config.cert_dir)
+        ctx = ssl.create_default_context(ssl.Purpose.CLIENT_AUTH)
+        try:
+            ctx.load_cert_chain(cert, key)
+        except (OSError, ssl.SSLError) as exc:
+            raise WebIngestError(f"{cert}: cannot load the certificate/key: {exc}") from None
+        return ctx
+
+    def start(self, timeout_s: float = 10.0) -> str:
+        """Serve in a background thread; returns the page URL (``https://localhost:<port>/``)."""
+        ssl_ctx = self._ssl_context()
+        app = self._app()
+        ready = threading.Event()
+        errors: list[BaseException] = []
+
+        def serve() -> None:
+            loop = asyncio.new_event_loop()
+            self._loop = loop
+            asyncio.set_event_loop(loop)
+            try:
+                self._runner = web.AppRunner(app, access_log=None, handle_signals=False)
+                loop.run_until_complete(self._runner.setup())
+                site = web.TCPSite(self._runner, self.config.host, self.config.port,
+                                   ssl_context=ssl_ctx)
+                loop.run_until_complete(site.start())
+                server = site._server  # aiohttp keeps the asyncio server here
+                self.port = int(server.sockets[0].getsockname()[1])  # type: ignore[union-attr]
+                poller = loop.create_task(self._status_poller())
+            except BaseException as exc:  # reported to start()'s caller
+                errors.append(exc)
+                ready.set()
+                return
+            ready.set()
+            try:
+                loop.run_forever()
+            finally:
+                poller.cancel()
+                with contextlib.suppress(asyncio.CancelledError):
+                    loop.run_until_complete(poller)
+                loop.run_until_complete(self._runner.cleanup())
+                loop.close()
+
+        self._thread = threading.Thread(target=serve, name="dexaug-web", daemon=True)
+        self._thread.start()
+        if not ready.wait(timeout_s):
+            raise WebIngestError(f"the web server did not start within {timeout_s} s")
+        if errors:
+            exc = errors[0]
+            raise WebIngestError(f"cannot serve on {self.config.host}:{self.config.port}: "
+                                 f"{exc}") from exc
+        scheme = "https" if ssl_ctx is not None else "http"
+        self.url = f"{scheme}://localhost:{self.port}/"
+        logger.info("headset page on %s (WebSocket /ws) for rig %s", self.url, self.keys.rig)
+        return self.url
+
+    def close(self) -> None:
+        """Stop serving (closing the headset's socket), undeclare, close an owned session."""
+        self._stopped.set()
+        loop = self._loop
+        if loop is not None and self._thread is not None:
+            async def shutdown() -> None:
+                c = self._client
+                if c is not None:
+                    await c.ws.close(code=1001, message=b"bridge shutting down")
+            with contextlib.suppress(Exception):
+                asyncio.run_coroutine_threadsafe(shutdown(), loop).result(5.0)
+            loop.call_soon_threadsafe(loop.stop)
+            self._thread.join(10.0)
+            self._thread = None
+        for ent in (*self._subs, self._pub):
+            with contextlib.suppress(Exception):
+                ent.undeclare()
+        if self._own_session:
+            self.session.close()
+
+    def __enter__(self) -> WebIngest:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def stats(self) -> dict[str, Any]:
+        """Counters and the ingest latency (median/p99, ms) so far."""
+        with self._lock:
+            counts = dict(self.counts)
+            lat = np.array(self.ingest_latency_s) * 1e3
+        out: dict[str, Any] = {"counts": counts, "connected": self._client is not None}
+        if lat.size:
+            out["ingest_latency_ms"] = {"median": float(np.median(lat)),
+                                        "p99": float(np.percentile(lat, 99))}
+        return out
+
+    # ------------------------------------------------------------------------- zenoh → page
+
+    def _push(self, text: str | None = None, view: bytes | None = None) -> None:
+        """Queue a message for the headset (from any thread); dropped when none is connected."""
+        loop, c = self._loop, self._client
+        if loop is None or c is None:
+            return
+
+        def put() -> None:
+            if text is not None:
+                c.texts.append(text)
+            if view is not None:
+                c.view = view
+            c.wake.set()
+        loop.call_soon_threadsafe(put)
+
+    def _on_view(self, sample: zenoh.Sample) -> None:
+        with self._lock:
+            self.counts["views_in"] += 1
+        self._push(view=sample.payload.to_bytes())
+
+    def _on_state(self, sample: zenoh.Sample) -> None:
+        now = time.perf_counter()
+        if self._client is None or now < self._next_state_s:
+            return
+        self._next_state_s = now + 1.0 / self.config.state_rate_hz
+        try:
+            st = json.loads(sample.payload.to_bytes())
+            contacts = st.get("contacts") or []
+            summary = {"type": "state", "seq": st.get("seq"), "held": st.get("held"),
+                       "object": st.get("object"),
+                       "contact_fingers": sorted({c.get("finger") for c in contacts
+                                                  if c.get("finger")}),
+                       "n_contacts": len(contacts)}
+        except (ValueError, AttributeError, TypeError) as exc:
+            logger.warning("%s: unreadable state message: %s", self.keys.state, exc)
+            return
+        self._push(text=json.dumps(summary))
+
+    def _on_event(self, sample: zenoh.Sample) -> None:
+        try:
+            event = json.loads(sample.payload.to_bytes())
+        except ValueError:
+            return
+        self._push(text=json.dumps({"type": "event", "event": event}))
+
+    async def _query(self, command: str, args: dict[str, Any] | None = None,
+                     timeout_s: float = 5.0) -> dict[str, Any]:
+        """A control query, off the event loop (zenoh's get blocks)."""
+        key = self.keys.control_cmd(command)
+        try:
+            return await asyncio.to_thread(zkeys.query_json, self.session, key, args or {},
+                                           timeout_s=timeout_s)
+        except RuntimeError as exc:
+            return {"ok": False, "error": f"no bridge answered ({exc})"}
+
+    async def _status_poller(self) -> None:
+        """Tell the page every ``status_period_s`` whether the bridge runs and records."""
+        while not self._stopped.is_set():
+            await asyncio.sleep(self.config.status_period_s)
+            if self._client is None:
+                continue
+            st = await self._query("status", timeout_s=min(2.0, self.config.status_period_s * 2))
+            msg = {"type": "status", "bridge": bool(st.get("ok")),
+                   "recording": st.get("recording"), "object": st.get("object"),
+                   "view": st.get("view"), "error": st.get("error")}
+            self._push(text=json.dumps(msg))
+
+    # ---------------------------------------------------------------------------- WebSocket
+
+    async def _sender(self, c: _Client) -> None:
+        while not c.ws.closed:
+            await c.wake.wait()
+            c.wake.clear()
+            while c.texts:
+                await c.ws.send_str(c.texts.popleft())
+            if c.view is not None:
+                jpeg, c.view = c.view, None
+                await c.ws.send_bytes(jpeg)
+                with self._lock:
+                    self.counts["views_out"] += 1
+
+    async def _hello(self, ws: web.WebSocketResponse, peer: str) -> str | None:
+        """Wait for the page's ``hello``; its ``client_id`` (or None if it never says hello)."""
+        try:
+            msg = await ws.receive(timeout=self.config.hello_timeout_s)
+        except TimeoutError:
+            msg = None
+        if msg is None or msg.type != WSMsgType.TEXT:
+            logger.warning("web client %s sent no hello within %.0f s; closing", peer,
+                           self.config.hello_timeout_s)
+            return None
+        try:
+            hello = json.loads(msg.data)
+            if hello.get("type") != "hello":
+                raise ValueError(f"expected a hello, got type {hello.get('type')!r}")
+        except (ValueError, AttributeError) as exc:
+            logger.warning("web client %s: bad hello (%s); closing", peer, exc)
+            return None
+        return str(hello.get("client_id") or uuid.uuid4())
+
+    async def _ws_handler(self, request: web.Request) -> web.WebSocketResponse:
+        ws = web.WebSocketResponse(heartbeat=self.config.heartbeat_s, max_msg_size=1 << 20)
+        await ws.prepare(request)
+        peer = str(request.remote)
+        client_id = await self._hello(ws, peer)
+        if client_id is None:
+            await ws.close(code=4400, message=b"no hello")
+            return ws
+        old = self._client
+        if old is not None and old.client_id != client_id:
+            with self._lock:
+                self.counts["refused"] += 1
+            reason = (f"another headset ({old.peer}) is already connected to rig "
+                      f"{self.keys.rig!r}; only one at a time")
+            logger.warning("refused a second headset from %s: %s", peer, reason)
+            await ws.send_str(json.dumps({"type": "refused", "reason": reason}))
+            await ws.close(code=4409, message=b"another headset is connected")
+            return ws
+        if old is not None:
+            logger.info("headset %s reconnected; closing its previous socket", peer)
+            await old.ws.close(code=4000, message=b"replaced by a new connection")
+        c = _Client(ws, client_id, peer)
+        self._client = c
+        with self._lock:
+            self.counts["connections"] += 1
+        logger.info("headset connected from %s (client %s)", peer, client_id[:8])
+        await ws.send_str(json.dumps({"type": "welcome", "rig": self.keys.rig,
+                                      "commands": list(PAGE_COMMANDS)}))
+        sender = asyncio.create_task(self._sender(c))
+        try:
+            async for msg in ws:
+                if msg.type == WSMsgType.BINARY:
+                    self._on_frame(msg.data)
+                elif msg.type == WSMsgType.TEXT:
+                    await self._on_text(c, msg.data)
+                elif msg.type == WSMsgType.ERROR:
+                    logger.warning("headset %s: WebSocket error %s", peer, ws.exception())
+        finally:
+            sender.cancel()
+            with contextlib.suppress(asyncio.CancelledError, ConnectionError):
+                await sender
+            if self._client is c:
+                self._client = None
+            logger.info("headset %s disconnected (close code %s)", peer, ws.close_code)
+        return ws
+
+    def _on_frame(self, data: bytes) -> None:
+        t0 = time.perf_counter()
+        t_rx = time.time()
+        try:
+            payload = encode(parse_ws_frame(data, t_rx))
+        except MessageError as exc:
+            with self._lock:
+                self.counts["bad_frames"] += 1
+                n = self.counts["bad_frames"]
+            if n <= 3 or n % _LOG_EVERY == 0:
+                logger.warning("skipped bad web hand frame #%d: %s", n, exc)
+            return
+        self._pub.put(payload)
+        dt_s = time.perf_counter() - t0
+        with self._lock:
+            self.counts["frames"] += 1
+            self.ingest_latency_s.append(dt_s)
+
+    async def _on_text(self, c: _Client, text: str) -> None:
+        try:
+            msg = json.loads(text)
+            kind = msg.get("type")
+        except (ValueError, AttributeError):
+            logger.warning("headset %s: unreadable text message %r", c.peer, text[:80])
+            return
+        if kind == "control":
+            command = str(msg.get("command"))
+            if command not in PAGE_COMMANDS:
+                result = {"ok": False, "error": f"unknown command {command!r}; one of "
+                                                 f"{list(PAGE_COMMANDS)}"}
+            else:
+                args = msg.get("args") if isinstance(msg.get("args"), dict) else {}
+                result = await self._query(command, args)
+                logger.info("headset %s: %s → %s", c.peer, command,
+                            "ok" if result.get("ok") else result.get("error"))
+            await c.ws.send_str(json.dumps({"type": "control_reply", "command": command,
+                                            "id": msg.get("id"), "result": result}))
+        elif kind == "notice":
+            logger.warning("headset %s: %s", c.peer, str(msg.get("message"))[:300])
+            with self._lock:
+                self.counts[f"notice_{str(msg.get('what', 'other'))[:40]}"] += 1
+        elif kind == "stats":
+            with self._lock:
+                self.counts["page_stats"] += 1
+        else:
+            logger.warning("headset %s: unknown message type %r", c.peer, kind)

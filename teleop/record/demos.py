@@ -1,0 +1,221 @@
+"""Grasp demonstrations extracted from recorded sessions (DESIGN §6, "demo extraction").
+
+A demo is what the augmenter needs of one human grasp: the object, the hand's joint angles,
+frame_palm in the object frame, and per finger the contact centroid in its fingertip body frame
+(AutoWS centres the contact faces there) — plus where it came from (session file, log time).
+
+Where the grasp moment is. A bridge recording holds ``/state`` (simulated qpos, palm and object
+poses in the world) and ``/contacts`` (hand–object contacts, tagged with the finger whose tip
+body touches) at the same log times. A *stable grasp* is a run of states in which at least
+``min_fingers`` fingertips touch the object, the hand's most important finger (its first in
+priority order: the thumb for the Shadow Hand) among them, lasting at least ``min_duration_s``;
+the moment inside a run is the state with the most fingertips in contact (the middle one of
+those, for ties). Contact losses shorter than ``max_gap_s`` do not split a run.
+An operator's ``grasp_mark`` event is an explicit moment: the state it names
+(``seq``) or the last one logged before it; when that state has too few fingertip contacts, the
+best state within ``mark_window_s`` is taken instead, and a mark with none is reported, not
+silently dropped. A mark within ``mark_window_s`` of a stable run replaces that run's own
+moment (one demo per grasp).
+
+Why simulated contacts and not the operator's hand: the augmenter works on the robot hand's
+grasp, and the recording's contacts are the robot's, in the robot fingertip frames.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sim.demo import Demo, DemoError
+from sim.transforms import pose_inv, pose_mul
+from teleop.record.schemas import TOPIC_CONTACTS, TOPIC_STATE
+from teleop.record.session import Session, SessionError, open_session
+
+__all__ = ["DemoParams", "extract_demos"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class DemoParams:
+    """Grasp-moment detection. ``min_fingers`` fingertips (the first finger of the hand among
+    them) in contact for at least ``min_duration_s`` seconds, losses shorter than
+    ``max_gap_s`` bridged; a ``grasp_mark`` belongs to a contact run within ``mark_window_s``
+    seconds of it, and may look that far either side for a state with enough contacts."""
+
+    min_fingers: int = 2
+    min_duration_s: float = 0.3
+    max_gap_s: float = 0.25
+    mark_window_s: float = 0.5
+
+
+@dataclass
+class _Track:
+    """Per-state arrays of a session: log times (ns), seq, qpos, poses, fingertip contacts."""
+
+    t_ns: np.ndarray
+    seq: list[int | None]
+    states: list[dict[str, Any]]
+    contacts: list[list[dict[str, Any]]]
+    fingers_touching: list[frozenset[str]]
+
+
+def _track(session: Session, fingers: tuple[str, ...]) -> _Track:
+    where = session.path
+    for topic in (TOPIC_STATE, TOPIC_CONTACTS):
+        if not session.counts.get(topic):
+            raise DemoError(f"{where}: no {topic} messages; the session holds raw input only "
+                            f"(record it through the bridge: `dexaug rerecord {where} OUT.mcap`)")
+    states = session.json_messages(TOPIC_STATE)
+    by_time = {t: c for t, c in session.json_messages(TOPIC_CONTACTS)}
+    known = set(fingers)
+    t_ns, seq, st, con, touching = [], [], [], [], []
+    for t, s in states:
+        c = [x for x in by_time.get(t, {}).get("contacts", []) if x.get("finger") in known]
+        t_ns.append(t)
+        seq.append(s.get("seq"))
+        st.append(s)
+        con.append(c)
+        touching.append(frozenset(x["finger"] for x in c))
+    return _Track(np.asarray(t_ns, np.int64), seq, st, con, touching)
+
+
+def _runs(ok: np.ndarray) -> list[tuple[int, int]]:
+    """[start, stop) index ranges of the True runs of ``ok``."""
+    edges = np.diff(np.concatenate([[0], ok.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True))
+
+
+def _merged_runs(t_ns: np.ndarray, ok: np.ndarray, max_gap_s: float) -> list[tuple[int, int]]:
+    """True runs of ``ok`` with gaps shorter than ``max_gap_s`` bridged: a fingertip that
+    flickers off for a few frames while the object is held is the same grasp."""
+    merged: list[tuple[int, int]] = []
+    for lo, hi in _runs(ok):
+        if merged and (int(t_ns[lo]) - int(t_ns[merged[-1][1] - 1])) * 1e-9 <= max_gap_s:
+            merged[-1] = (merged[-1][0], hi)
+        else:
+            merged.append((lo, hi))
+    return merged
+
+
+def _best_in(track: _Track, lo: int, hi: int) -> int:
+    n = np.array([len(track.fingers_touching[i]) for i in range(lo, hi)])
+    best = np.flatnonzero(n == n.max())
+    return lo + int(best[len(best) // 2])
+
+
+def _demo_at(session: Session, track: _Track, i: int, hand: str, obj: str, how: str,
+             duration_s: float) -> Demo:
+    s = track.states[i]
+    joints = np.asarray(s["qpos"], float)
+    inv_p, inv_q = pose_inv(np.asarray(s["object_pos_m"], float),
+                            np.asarray(s["object_quat_wxyz"], float))
+    palm_p, palm_q = pose_mul(inv_p, inv_q, np.asarray(s["palm_pos_m"], float),
+                              np.asarray(s["palm_quat_wxyz"], float))
+    tip: dict[str, np.ndarray] = {}
+    pts: dict[str, np.ndarray] = {}
+    for finger in sorted(track.fingers_touching[i]):
+        mine = [c for c in track.contacts[i] if c["finger"] == finger]
+        tip[finger] = np.mean([c["pos_hand_body_m"] for c in mine], axis=0)
+        pts[finger] = np.array([c["pos_object_m"] for c in mine], float)
+    t_s = (int(track.t_ns[i]) - int(session.start_time_ns or track.t_ns[0])) * 1e-9
+    return Demo(id=f"{session.path.stem}@{t_s:.2f}s", hand=hand, object=obj, joints=joints,
+                palm_pos_m=palm_p, palm_quat_wxyz=palm_q, tip_contacts=tip,
+                contact_points_obj=pts, source=session.path, time_s=t_s, how=how,
+                duration_s=duration_s, fingers=tuple(sorted(track.fingers_touching[i])))
+
+
+def extract_demos(path: Path | str, params: DemoParams | None = None) -> list[Demo]:
+    """All grasp demonstrations of the session at ``path`` (module docstring), in time order.
+
+    Raises:
+        DemoError: the session names no hand or object, was recorded without the bridge, or
+            holds no grasp (the message gives the longest contact run found and why it fell
+            short), or cannot be read (damaged, not MCAP: the reader's message).
+    """
+    p = params or DemoParams()
+    try:
+        session = open_session(path)
+    except SessionError as exc:
+        raise DemoError(str(exc)) from None
+    meta = session.metadata
+    hand, obj = meta.get("hand"), meta.get("object")
+    if not hand:
+        raise DemoError(f"{path}: session metadata names no hand (key 'hand')")
+    if not obj:
+        raise DemoError(f"{path}: session has no object (metadata key 'object'); a demo needs "
+                        f"the grasped object")
+    fingers = tuple(meta.get("fingers") or ())
+    if not fingers:
+        raise DemoError(f"{path}: session metadata lists no fingers (key 'fingers')")
+    if session.truncated:
+        log.warning("%s is truncated at byte %d (recorder did not close it); using what is "
+                    "readable", path, session.stop_offset)
+    track = _track(session, fingers)
+    if not len(track.t_ns):
+        raise DemoError(f"{path}: no states")
+    lead = fingers[0]
+    n_touch = np.array([len(f) for f in track.fingers_touching])
+    ok = np.array([lead in f for f in track.fingers_touching]) & (n_touch >= p.min_fingers)
+    runs = []
+    for lo, hi in _merged_runs(track.t_ns, ok, p.max_gap_s):
+        dur = (int(track.t_ns[hi - 1]) - int(track.t_ns[lo])) * 1e-9
+        if dur >= p.min_duration_s:
+            runs.append((lo, hi, dur))
+    marks = _mark_states(session, track, p, lead, ok)
+    window_ns = p.mark_window_s * 1e9
+    moments: dict[int, tuple[str, float]] = {}
+    for lo, hi, dur in runs:
+        near = [m for m in marks
+                if track.t_ns[lo] - window_ns <= track.t_ns[m] <= track.t_ns[hi - 1] + window_ns]
+        marks = [m for m in marks if m not in near]
+        moments[near[0] if near else _best_in(track, lo, hi)] = (
+            "grasp_mark" if near else "stable contact", dur)
+    for m in marks:
+        moments[m] = ("grasp_mark", 0.0)
+    if not moments:
+        raise DemoError(f"{path}: no usable grasp: {_why_not(track, n_touch, ok, lead, p)}")
+    return [_demo_at(session, track, i, hand, obj, how, dur)
+            for i, (how, dur) in sorted(moments.items())]
+
+
+def _mark_states(session: Session, track: _Track, p: DemoParams, lead: str,
+                 ok: np.ndarray) -> list[int]:
+    """State indices of the ``grasp_mark`` events that have a usable state nearby."""
+    out = []
+    for t, ev in session.events():
+        if ev.get("type") != "grasp_mark":
+            continue
+        payload = ev.get("payload") or {}
+        seq = payload.get("seq")
+        hits = [i for i, s in enumerate(track.seq) if seq is not None and s == seq]
+        i = hits[-1] if hits else max(int(np.searchsorted(track.t_ns, t, side="right")) - 1, 0)
+        if ok[i]:
+            out.append(i)
+            continue
+        win = np.flatnonzero(ok & (np.abs(track.t_ns - track.t_ns[i]) <= p.mark_window_s * 1e9))
+        if len(win):
+            out.append(int(win[np.argmin(np.abs(win - i))]))
+        else:
+            log.warning("%s: grasp_mark at %.2f s has no state with >= %d fingertips (%s among "
+                        "them) touching the object within %.1f s; ignored", session.path,
+                        (t - (session.start_time_ns or t)) * 1e-9, p.min_fingers, lead,
+                        p.mark_window_s)
+    return out
+
+
+def _why_not(track: _Track, n_touch: np.ndarray, ok: np.ndarray, lead: str,
+             p: DemoParams) -> str:
+    if not n_touch.any():
+        return "no fingertip ever touched the object"
+    if not ok.any():
+        most = max(track.fingers_touching, key=len)
+        return (f"never {p.min_fingers} fingertips with the {lead} among them in contact (most "
+                f"at once: {sorted(most)})")
+    longest = max((int(track.t_ns[hi - 1]) - int(track.t_ns[lo])) * 1e-9 for lo, hi in _runs(ok))
+    return (f"the longest contact with >= {p.min_fingers} fingertips lasted {longest:.2f} s, "
+            f"less than {p.min_duration_s} s, and no grasp_mark event was usable")

@@ -1,0 +1,439 @@
+"""Recording a teleop session to one MCAP file, crash-safe.
+
+Why MCAP and this layout: one self-describing file per session (every channel has a registered
+schema, see :mod:`teleop.record.schemas`) that replay, demo extraction and Foxglove all read; raw input
+(``/hands``) is kept bit-exact so a replay reproduces the session, and the simulation outputs
+(``/state``, ``/contacts``) are kept so demo extraction does not need to re-simulate.
+
+File policy: the recorder writes **in place** at ``path`` (no ``.part`` + rename). MCAP is
+append-only, so the file on disk is always a valid MCAP prefix; a killed recorder leaves a file
+that :func:`teleop.record.session.open_session` reads up to its last complete chunk (reporting
+``truncated=True``) and that Foxglove opens as an unindexed file. Writing in place means the
+session is where the operator expects it even after a crash; a ``.part`` name would add a
+recovery step and no safety. An existing file is never overwritten unless ``overwrite=True``.
+:func:`teleop.record.session.repair_session` rewrites a truncated file with a summary when a tool needs
+the index.
+
+Flush policy (what a crash can lose): messages accumulate in an in-memory chunk; the chunk is
+compressed and written with its message index, and handed to the OS (Python's buffers
+flushed), as soon as any of these holds —
+
+- ``flush_interval_s`` (default 0.5 s) of wall-clock time has passed since the chunk's first
+  message, or its messages span that much log time;
+- the chunk holds ``chunk_size`` bytes (default 256 KiB uncompressed);
+- an event was written (events are rare and the most valuable records of a session);
+- :meth:`SessionRecorder.flush` or :meth:`SessionRecorder.close` is called.
+
+So a killed process (SIGKILL, a crash) loses at most the unflushed chunk: ≤ ``flush_interval_s``
+of data. Data handed to the OS survives the process; surviving a power cut also needs ``fsync``
+(``fsync=True`` syncs after every chunk; off by default because a sync can stall the bridge loop
+for tens of milliseconds on slow disks; :meth:`close` always syncs). The checks run when a
+message is written, so a loop that stops writing should call :meth:`flush`.
+
+Timestamps: every ``write_*`` takes ``log_time_ns`` (nanoseconds; default ``time.time_ns()``,
+Unix epoch, which Foxglove displays as dates). Session-relative times ``t_s`` in the JSON
+payloads default to seconds since the recorder opened. The recorder is thread-safe (one lock):
+zenoh callbacks may write ``/hands`` while the bridge loop writes the rest.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import logging
+import os
+import platform
+import threading
+import time
+from collections import Counter
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from importlib import metadata as _importlib_metadata
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, Writer
+
+from teleop import messages as hand_messages
+from teleop.record import schemas
+from teleop.record.schemas import ContactRecord, FrameTransform
+from teleop.record.session import SessionError
+
+log = logging.getLogger(__name__)
+
+_COMPRESSION = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4,
+                "none": CompressionType.NONE}
+#: Bytes a message adds to a chunk besides its data (record header + MCAP message fields).
+_MESSAGE_OVERHEAD = 9 + 22
+#: Event types only the recorder writes (at open and at close).
+_RECORDER_EVENTS = frozenset({"recording_started", "recording_stopped"})
+
+
+def _package_version(name: str) -> str:
+    try:
+        return _importlib_metadata.version(name)
+    except _importlib_metadata.PackageNotFoundError:
+        return "not installed"
+
+
+@dataclass
+class RecorderStats:
+    """Counters of a recording. ``written``: messages per topic handed to the recorder;
+    ``flushed``: of those, the ones written to the file (what a crash now would keep);
+    ``chunks``: chunks written; ``bytes_on_disk``: file size so far; ``flush_time_s``: total
+    seconds spent compressing and writing chunks."""
+
+    written: Counter[str] = field(default_factory=Counter)
+    flushed: Counter[str] = field(default_factory=Counter)
+    chunks: int = 0
+    bytes_on_disk: int = 0
+    flush_time_s: float = 0.0
+
+
+class SessionRecorder:
+    """Write one teleop session to ``path`` (a ``.mcap`` file); use as a context manager.
+
+    metadata: session facts stored in the ``dexaug.session`` metadata record — by convention
+    ``hand`` (hand config name), ``object`` (initial object name), ``joint_names`` (the order of
+    ``/state`` qpos; checked against every qpos), ``fingers`` (finger names, for marker colours),
+    ``rig``, ``config_hashes``; any JSON-serialisable values. The recorder adds
+    ``format_version``, software versions, ``created_utc``, ``start_time_ns`` and ``clock``.
+    chunk_size: bytes of uncompressed messages after which a chunk is written.
+    compression: "zstd" (default: best ratio), "lz4" (faster) or "none".
+    record_view: register ``/view`` and keep the JPEGs given to :meth:`write_view` (off by
+    default: images dominate the file size).
+    flush_interval_s: the longest a message waits in memory (see the module docstring).
+    fsync: sync the file to disk after every chunk (power-cut safety, at a latency cost).
+    overwrite: replace an existing file instead of raising :class:`SessionError`.
+    auto_tf: :meth:`write_state` also writes ``/tf`` (world→palm, world→object).
+    contact_markers: :meth:`write_contacts` also writes the ``contacts`` entity on ``/markers``.
+    """
+
+    def __init__(self, path: Path | str, *, metadata: Mapping[str, Any],
+                 chunk_size: int = 256 * 1024, compression: str = "zstd",
+                 record_view: bool = False, flush_interval_s: float = 0.5,
+                 fsync: bool = False, overwrite: bool = False, auto_tf: bool = True,
+                 contact_markers: bool = True, start_time_ns: int | None = None) -> None:
+        if compression not in _COMPRESSION:
+            raise ValueError(f"compression must be one of {sorted(_COMPRESSION)}, got "
+                             f"{compression!r}")
+        if chunk_size <= 0 or not flush_interval_s > 0:
+            raise ValueError(f"chunk_size (bytes) and flush_interval_s (seconds) must be > 0, "
+                             f"got {chunk_size} and {flush_interval_s}")
+        self.path = Path(path)
+        self.chunk_size = int(chunk_size)
+        self.flush_interval_s = float(flush_interval_s)
+        self._flush_interval_ns = int(flush_interval_s * 1e9)
+        self.record_view = bool(record_view)
+        self.fsync = bool(fsync)
+        self.auto_tf = bool(auto_tf)
+        self.contact_markers = bool(contact_markers)
+        # recorder's own clock (Unix epoch) unless the caller brings one (replay, tests)
+        self._own_clock = start_time_ns is None
+        self.start_time_ns = time.time_ns() if start_time_ns is None else int(start_time_ns)
+        self._last_log_ns = self.start_time_ns
+        self.stats = RecorderStats()
+        self.metadata = self._session_metadata(metadata)
+        joint_names = self.metadata.get("joint_names")
+        if joint_names is not None and (not isinstance(joint_names, list | tuple) or
+                                        not all(isinstance(n, str) for n in joint_names)):
+            raise ValueError("metadata['joint_names'] must be a list of joint name strings")
+        self.joint_names: tuple[str, ...] | None = (tuple(joint_names) if joint_names is not None
+                                                    else None)
+        self.fingers: tuple[str, ...] = tuple(self.metadata.get("fingers", ()))
+        self.current_object: str | None = self.metadata.get("object")
+        metadata_record = self._metadata_record(self.metadata)  # fails before the file exists
+        self._lock = threading.RLock()
+        self._closed = False
+        self._pending_topics: Counter[str] = Counter()
+        self._pending_bytes = 0
+        self._chunk_open_mono = 0.0
+        self._chunk_first_log_ns = 0
+        self._sequence: Counter[str] = Counter()
+
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            self._file = open(self.path, "wb" if overwrite else "xb")  # noqa: SIM115
+        except FileExistsError:
+            raise SessionError(f"{self.path}: a recording already exists there (pass "
+                               "overwrite=True to replace it)") from None
+        except OSError as exc:
+            raise SessionError(f"{self.path}: cannot create the recording: {exc.strerror}"
+                               ) from None
+        # Chunk boundaries are ours (size and time), so the writer's own size trigger is off:
+        # every chunk then goes through flush(), which also hands the bytes to the OS.
+        self._writer = Writer(self._file, chunk_size=1 << 62,
+                              compression=_COMPRESSION[compression], enable_data_crcs=True)
+        dexaug_version = self.metadata["dexaug_version"]
+        self._writer.start(profile="", library=f"dexaug/{dexaug_version} {LIBRARY_IDENTIFIER}")
+        self._channel_ids: dict[str, int] = {}
+        for spec in schemas.CHANNELS:
+            if spec.optional and not (spec.topic == schemas.TOPIC_VIEW and self.record_view):
+                continue
+            schema_id = self._writer.register_schema(spec.schema_name, spec.schema_encoding,
+                                                     spec.schema_data)
+            self._channel_ids[spec.topic] = self._writer.register_channel(
+                spec.topic, spec.message_encoding, schema_id,
+                {"description": spec.description})
+        self._writer.add_metadata(schemas.METADATA_NAME, metadata_record)
+        self._file.flush()
+        log.info("recording %s (chunks ≤ %d B or %.2f s, %s)", self.path, self.chunk_size,
+                 self.flush_interval_s, compression)
+        self._write_event_unchecked("recording_started", {"path": str(self.path)},
+                                    None, self.start_time_ns)
+
+    # --- metadata ---------------------------------------------------------------------------------
+
+    def _session_metadata(self, user: Mapping[str, Any]) -> dict[str, Any]:
+        reserved = {"format_version", schemas.JSON_KEYS_KEY}
+        clash = reserved & set(user)
+        if clash:
+            raise ValueError(f"metadata keys {sorted(clash)} are set by the recorder")
+        meta: dict[str, Any] = {
+            "format_version": schemas.FORMAT_VERSION,
+            "dexaug_version": _package_version("dexaug"),
+            "mcap_version": _package_version("mcap"),
+            "numpy_version": np.__version__,
+            "mujoco_version": _package_version("mujoco"),
+            "python_version": platform.python_version(),
+            "created_utc": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+            "start_time_ns": self.start_time_ns,
+            "clock": "unix_ns" if self._own_clock else "caller",
+        }
+        meta.update(user)
+        return meta
+
+    @staticmethod
+    def _metadata_record(meta: Mapping[str, Any]) -> dict[str, str]:
+        """MCAP metadata values are strings: plain strings stay readable in any viewer, other
+        values are JSON and listed under :data:`schemas.JSON_KEYS_KEY` for exact round trips."""
+        record: dict[str, str] = {}
+        json_keys = []
+        for key, value in meta.items():
+            if isinstance(value, str):
+                record[key] = value
+            else:
+                try:
+                    record[key] = json.dumps(value, allow_nan=False, default=_json_default)
+                except (TypeError, ValueError) as exc:
+                    raise ValueError(f"metadata[{key!r}] is not JSON-serialisable: {exc}"
+                                     ) from None
+                json_keys.append(key)
+        record[schemas.JSON_KEYS_KEY] = json.dumps(sorted(json_keys))
+        return record
+
+    # --- core -------------------------------------------------------------------------------------
+
+    def _now(self, log_time_ns: int | None) -> int:
+        if log_time_ns is None:
+            return time.time_ns()
+        t = int(log_time_ns)
+        if not 0 <= t < 2**64:
+            raise ValueError(f"log_time_ns must be in [0, 2**64) nanoseconds, got {log_time_ns}")
+        return t
+
+    def _t_s(self, t_s: float | None, log_time_ns: int) -> float:
+        return (log_time_ns - self.start_time_ns) * 1e-9 if t_s is None else float(t_s)
+
+    def _add(self, topic: str, data: bytes, log_time_ns: int) -> None:
+        """Append one message (lock held by the caller) and apply the flush policy."""
+        if self._closed:
+            raise SessionError(f"{self.path}: the recorder is closed")
+        if not self._pending_topics:
+            self._chunk_open_mono = time.monotonic()
+            self._chunk_first_log_ns = log_time_ns
+        seq = self._sequence[topic]
+        self._sequence[topic] = (seq + 1) & 0xFFFFFFFF
+        self._writer.add_message(self._channel_ids[topic], log_time_ns, data, log_time_ns, seq)
+        self._pending_topics[topic] += 1
+        self._pending_bytes += len(data) + _MESSAGE_OVERHEAD
+        self.stats.written[topic] += 1
+        self._last_log_ns = max(self._last_log_ns, log_time_ns)
+        if (self._pending_bytes >= self.chunk_size
+                or time.monotonic() - self._chunk_open_mono >= self.flush_interval_s
+                or abs(log_time_ns - self._chunk_first_log_ns) >= self._flush_interval_ns):
+            self._flush_locked()
+
+    def _flush_locked(self) -> None:
+        if not self._pending_topics:
+            return
+        t0 = time.perf_counter()
+        self._writer.flush()  # compresses the chunk, writes it + its message index, flushes
+        if self.fsync:
+            os.fsync(self._file.fileno())
+        self.stats.flush_time_s += time.perf_counter() - t0
+        self.stats.chunks += 1
+        self.stats.flushed.update(self._pending_topics)
+        self.stats.bytes_on_disk = self._file.tell()
+        self._pending_topics.clear()
+        self._pending_bytes = 0
+
+    def flush(self) -> None:
+        """Write the chunk in progress now (a loop that goes idle calls this)."""
+        with self._lock:
+            if not self._closed:
+                self._flush_locked()
+
+    # --- channels ---------------------------------------------------------------------------------
+
+    def write_hands(self, frame: hand_messages.HandFrame | bytes,
+                    log_time_ns: int | None = None) -> None:
+        """Raw input on ``/hands``: a :class:`HandFrame` (encoded, hence validated) or its wire
+        bytes as received (decoded once to validate, then stored unchanged)."""
+        if isinstance(frame, bytes | bytearray | memoryview):
+            data = bytes(frame)
+            hand_messages.decode(data)
+        else:
+            data = hand_messages.encode(frame)
+        with self._lock:
+            self._add(schemas.TOPIC_HANDS, data, self._now(log_time_ns))
+
+    def write_state(self, qpos: Any, palm_pos_m: Any, palm_quat_wxyz: Any, object_pos_m: Any,
+                    object_quat_wxyz: Any, *, t_s: float | None = None, seq: int | None = None,
+                    tracked: bool = True, object_name: str | None = None,
+                    extra: Mapping[str, Any] | None = None,
+                    log_time_ns: int | None = None) -> None:
+        """The bridge state on ``/state``: hand qpos (radians, order of ``joint_names``), palm
+        and object poses in the world (metres, quaternions wxyz). With ``auto_tf`` the same
+        poses go to ``/tf`` as world→palm and world→object."""
+        q = np.asarray(qpos, dtype=float).ravel()
+        if self.joint_names is not None and len(q) != len(self.joint_names):
+            raise ValueError(f"qpos has {len(q)} values, metadata joint_names has "
+                             f"{len(self.joint_names)}")
+        poses = {"palm_pos_m": (palm_pos_m, 3), "palm_quat_wxyz": (palm_quat_wxyz, 4),
+                 "object_pos_m": (object_pos_m, 3), "object_quat_wxyz": (object_quat_wxyz, 4)}
+        payload: dict[str, Any] = {}
+        for key, (value, n) in poses.items():
+            arr = np.asarray(value, dtype=float).ravel()
+            if arr.shape != (n,):
+                raise ValueError(f"{key} must have {n} values, got shape {np.shape(value)}")
+            payload[key] = schemas.finite_list(arr)
+        with self._lock:
+            t = self._now(log_time_ns)
+            payload.update(t_s=self._t_s(t_s, t), seq=None if seq is None else int(seq),
+                           tracked=bool(tracked), qpos=schemas.finite_list(q),
+                           object=object_name if object_name is not None else self.current_object,
+                           extra=dict(extra) if extra else {})
+            self._add(schemas.TOPIC_STATE, schemas.dumps(payload), t)
+            if self.auto_tf:
+                self._add(schemas.TOPIC_TF, schemas.dumps(schemas.frame_transforms(
+                    [FrameTransform(schemas.FRAME_WORLD, schemas.FRAME_PALM, palm_pos_m,
+                                    palm_quat_wxyz),
+                     FrameTransform(schemas.FRAME_WORLD, schemas.FRAME_OBJECT, object_pos_m,
+                                    object_quat_wxyz)], t)), t)
+
+    def write_contacts(self, contacts: Sequence[ContactRecord], *, t_s: float | None = None,
+                       object_name: str | None = None, log_time_ns: int | None = None) -> None:
+        """Hand–object contacts on ``/contacts`` (possibly none: an empty list records "no
+        contact" explicitly); with ``contact_markers`` also the ``contacts`` entity on
+        ``/markers`` (spheres coloured by finger, normal arrows scaled by force)."""
+        items = [c.to_json() for c in contacts]
+        with self._lock:
+            t = self._now(log_time_ns)
+            payload = {"t_s": self._t_s(t_s, t), "contacts": items,
+                       "object": object_name if object_name is not None else self.current_object}
+            self._add(schemas.TOPIC_CONTACTS, schemas.dumps(payload), t)
+            if self.contact_markers:
+                entity = schemas.contact_entity(contacts, t, fingers=self.fingers)
+                self._add(schemas.TOPIC_MARKERS,
+                          schemas.dumps(schemas.scene_update([entity])), t)
+
+    def write_event(self, event_type: str, payload: Mapping[str, Any] | None = None, *,
+                    t_s: float | None = None, log_time_ns: int | None = None) -> None:
+        """An operator event on ``/events`` (``grasp_mark``, ``object_changed`` with payload
+        ``{"object": name}``, ``object_reset``); written and flushed at once. The start/stop
+        events are the recorder's own. ``object_changed`` also updates the object name that
+        later ``/state`` and ``/contacts`` messages carry."""
+        if event_type in _RECORDER_EVENTS:
+            raise ValueError(f"{event_type!r} is written by the recorder itself (at open/close)")
+        if event_type not in schemas.EVENT_TYPES:
+            raise ValueError(f"unknown event type {event_type!r}; one of "
+                             f"{[e for e in schemas.EVENT_TYPES if e not in _RECORDER_EVENTS]}")
+        with self._lock:
+            self._write_event_unchecked(event_type, payload, t_s, self._now(log_time_ns))
+            if event_type == "object_changed" and payload and "object" in payload:
+                self.current_object = str(payload["object"])
+
+    def _write_event_unchecked(self, event_type: str, payload: Mapping[str, Any] | None,
+                               t_s: float | None, t: int) -> None:
+        body = {"type": event_type, "t_s": self._t_s(t_s, t),
+                "payload": dict(payload) if payload else {}}
+        self._add(schemas.TOPIC_EVENTS, schemas.dumps(body), t)
+        self._flush_locked()
+
+    def write_tf(self, transforms: Sequence[FrameTransform], log_time_ns: int | None = None
+                 ) -> None:
+        """Extra transforms on ``/tf`` (e.g. every hand body in the world, for a hand model in
+        Foxglove), as ``foxglove.FrameTransforms``."""
+        with self._lock:
+            t = self._now(log_time_ns)
+            self._add(schemas.TOPIC_TF, schemas.dumps(schemas.frame_transforms(transforms, t)), t)
+
+    def write_markers(self, scene_update: Mapping[str, Any], log_time_ns: int | None = None
+                      ) -> None:
+        """A ``foxglove.SceneUpdate`` on ``/markers`` (build it with :mod:`teleop.record.schemas`:
+        :func:`~teleop.record.schemas.scene_update`, :func:`~teleop.record.schemas.model` for the object
+        mesh, :func:`~teleop.record.schemas.hand_skeleton_entity` for the operator's hand)."""
+        if "entities" not in scene_update and "deletions" not in scene_update:
+            raise ValueError("scene_update must be a foxglove.SceneUpdate dict (entities/"
+                             "deletions); see teleop.record.schemas.scene_update")
+        with self._lock:
+            self._add(schemas.TOPIC_MARKERS, schemas.dumps(scene_update), self._now(log_time_ns))
+
+    def write_view(self, jpeg: bytes, log_time_ns: int | None = None, *,
+                   frame_id: str = "view") -> bool:
+        """A headset view frame on ``/view`` (JPEG bytes, ``foxglove.CompressedImage``). Returns
+        False, writing nothing, when the recorder was opened with ``record_view=False``."""
+        if not self.record_view:
+            return False
+        if not bytes(jpeg[:2]) == b"\xff\xd8":
+            raise ValueError("write_view expects JPEG bytes (they start with FF D8)")
+        with self._lock:
+            t = self._now(log_time_ns)
+            self._add(schemas.TOPIC_VIEW,
+                      schemas.dumps(schemas.compressed_image(bytes(jpeg), t, frame_id=frame_id)),
+                      t)
+        return True
+
+    # --- lifecycle --------------------------------------------------------------------------------
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
+    def close(self, *, reason: str = "closed") -> None:
+        """Write ``recording_stopped``, the last chunk, the summary and footer; sync and close
+        the file. Idempotent."""
+        with self._lock:
+            if self._closed:
+                return
+            try:
+                t = time.time_ns() if self._own_clock else self._last_log_ns
+                self._write_event_unchecked("recording_stopped", {"reason": reason}, None, t)
+                self._writer.finish()
+                self._file.flush()
+                os.fsync(self._file.fileno())
+                self.stats.bytes_on_disk = self._file.tell()
+            finally:
+                self._closed = True
+                self._file.close()
+        log.info("recorded %s: %d messages, %d chunks, %d bytes", self.path,
+                 sum(self.stats.written.values()), self.stats.chunks, self.stats.bytes_on_disk)
+
+    def __enter__(self) -> SessionRecorder:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: object) -> None:
+        self.close(reason="closed" if exc is None else f"exception: {exc_type.__name__}: {exc}")
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, Path):
+        return str(value)
+    raise TypeError(f"{type(value).__name__} is not JSON-serialisable")
