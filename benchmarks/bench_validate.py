@@ -1,6 +1,6 @@
 """Validator throughput: validations per second for lift-drop and six-dir.
 
-Workload: for each object, the hand's reference grasps (configs/grasps/<hand>.toml) plus random
+Workload: for each object, the hand's reference grasps (configs/hands/<hand>/grasps.toml) plus random
 perturbations of them (palm ±5 mm / ±5°, joints ±0.05 rad), so passes and the usual failures
 (penetration, slipping, lost contact) are all in the mix. Prints one Markdown table.
 

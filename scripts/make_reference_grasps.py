@@ -1,4 +1,4 @@
-"""Rebuild ``configs/grasps/shadow_right.toml``: hand-built Shadow Hand grasps on YCB objects.
+"""Rebuild ``configs/hands/shadow_right/grasps.toml``: hand-built Shadow Hand grasps on YCB objects.
 
 Each grasp is made the way a person would: put the palm against the object, close the fingers
 until they stop (sim.world.closing), and store what the hand ended up with. Run:
@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from sim.hand.config import hand_dir
 from sim.hand.model import Hand
-from sim.hand.reference_grasps import GRASPS_DIR
 from sim.io import write_bytes_atomic
 from sim.transforms import mat_to_quat
 from sim.world.closing import close_on_object
@@ -50,7 +50,7 @@ def main() -> None:
                   f"palm_pos = [{', '.join(f'{v:.5f}' for v in grasp.palm_pos)}]",
                   f"palm_quat_wxyz = [{', '.join(f'{v:.6f}' for v in grasp.palm_quat_wxyz)}]",
                   f"joints = {{ {joints} }}", ""]
-    write_bytes_atomic(GRASPS_DIR / "shadow_right.toml", "\n".join(lines).encode())
+    write_bytes_atomic(hand_dir(hand.name) / "grasps.toml", "\n".join(lines).encode())
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 """Typed, validated access to TOML config files.
 
 A ``Section`` wraps one TOML table and remembers the file and dotted key path, so every lookup
-that fails says exactly where (``configs/hands/shadow_right.toml: fingers[2].joints: expected a
+that fails says exactly where (``configs/hands/shadow_right/hand.toml: fingers[2].joints: expected a
 list of strings``). Config dataclasses are built from Sections; nothing reads raw dicts.
 """
 

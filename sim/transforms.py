@@ -7,6 +7,7 @@ A pose is a pair (position (...,3), quaternion wxyz (...,4)); rotation matrices 
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
 
 Array = np.ndarray
@@ -116,3 +117,125 @@ def quat_angle(q_a: Array, q_b: Array) -> Array:
     """Rotation angle (radians, in [0, π]) between two orientations."""
     d = np.abs(np.sum(q_a * q_b, axis=-1))
     return 2.0 * np.arccos(np.clip(d, -1.0, 1.0))
+
+
+# --- batched rotation matrices (FSG, the synthetic operator) -----------------------------------
+
+
+def _skew(v: Array) -> Array:
+    """Cross-product matrices [v]× (...,3,3) of vectors v (...,3)."""
+    k = np.zeros((*v.shape[:-1], 3, 3))
+    k[..., 0, 1], k[..., 0, 2], k[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
+    k[..., 1, 0], k[..., 2, 0], k[..., 2, 1] = v[..., 2], -v[..., 1], v[..., 0]
+    return k
+
+
+def axis_angle_to_mat(axis: Array, angle: Array) -> Array:
+    """(B,3,3) rotations by ``angle`` (B,) radians about unit ``axis`` (B,3) (Rodrigues)."""
+    s, c = np.sin(angle)[:, None, None], np.cos(angle)[:, None, None]
+    kx = _skew(np.asarray(axis, dtype=float))
+    return np.eye(3) + s * kx + (1 - c) * (kx @ kx)
+
+
+def rotvec_to_mat(rotvecs: Array) -> Array:
+    """Rotation matrices (...,3,3) of rotation vectors (...,3) (axis × angle, radians); the
+    zero vector gives the identity."""
+    v = np.asarray(rotvecs, dtype=float)
+    th = np.linalg.norm(v, axis=-1)[..., None, None]
+    k = _skew(v)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        s = np.where(th > 1e-12, np.sin(th) / np.where(th > 0, th, 1.0), 1.0)
+        c = np.where(th > 1e-12, (1.0 - np.cos(th)) / np.where(th > 0, th * th, 1.0), 0.5)
+    return np.eye(3) + s * k + c * (k @ k)
+
+
+def rotation_between(a: Array, b: Array) -> Array:
+    """(B,3,3) rotations taking unit vectors a (B,3) onto unit vectors b (B,3); for a = −b a
+    half turn about an axis perpendicular to a."""
+    v = np.cross(a, b)
+    c = np.einsum("ij,ij->i", a, b)
+    vx = _skew(v)
+    anti = c < -1 + 1e-9
+    k = np.where(anti, 0.0, 1.0 / np.maximum(1.0 + c, 1e-12))
+    r = np.eye(3) + vx + vx @ vx * k[:, None, None]
+    if anti.any():
+        e1, _ = perpendicular_basis(a[anti])
+        r[anti] = 2 * e1[:, :, None] * e1[:, None, :] - np.eye(3)
+    return r
+
+
+def perpendicular_basis(n: Array) -> tuple[Array, Array]:
+    """Two unit vectors (B,3) completing unit normals n (B,3) to a right-handed basis
+    (e1, e2, n)."""
+    helper = np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]])
+    e1 = np.cross(n, helper)
+    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    return e1, np.cross(n, e1)
+
+
+def frame_from_x(x: Array, z_hint: Array) -> Array:
+    """Right-handed frame (3×3, columns x, y, z) with x along ``x`` and z as close to
+    ``z_hint`` as is perpendicular to x."""
+    x = np.asarray(x, dtype=float) / np.linalg.norm(x)
+    z = np.asarray(z_hint, dtype=float) - (np.dot(z_hint, x)) * x
+    z /= np.linalg.norm(z)
+    return np.column_stack([x, np.cross(z, x), z])
+
+
+def slerp_mat(r0: Array, r1: Array, s: float) -> Array:
+    """Rotation (3×3) a fraction ``s`` of the way from r0 to r1 along the geodesic."""
+    q0, q1 = mat_to_quat(r0), mat_to_quat(r1)
+    if float(q0 @ q1) < 0.0:
+        q1 = -q1
+    d = float(np.clip(q0 @ q1, -1.0, 1.0))
+    if d > 0.9995:
+        q = q0 + s * (q1 - q0)
+    else:
+        th = np.arccos(d)
+        q = (np.sin((1 - s) * th) * q0 + np.sin(s * th) * q1) / np.sin(th)
+    return quat_to_mat(q / np.linalg.norm(q))
+
+
+def rpy_deg_to_quat(rpy_deg: Array) -> Array:
+    """Rotation about fixed x, then y, then z (degrees, (3,)) as a wxyz quaternion."""
+    rx, ry, rz = np.deg2rad(np.asarray(rpy_deg, dtype=float))
+    qx = axis_angle_to_quat(np.array([1.0, 0.0, 0.0]), rx)
+    qy = axis_angle_to_quat(np.array([0.0, 1.0, 0.0]), ry)
+    qz = axis_angle_to_quat(np.array([0.0, 0.0, 1.0]), rz)
+    return quat_mul(qz, quat_mul(qy, qx))
+
+
+def rpy_deg_to_mat(rpy_deg: Array) -> Array:
+    """Rotation about fixed x, then y, then z (degrees, (3,)) as a 3×3 matrix."""
+    return quat_to_mat(rpy_deg_to_quat(rpy_deg))
+
+
+# --- quaternion order at the boundaries (OpenXR, WebXR and Foxglove use xyzw) ------------------
+
+
+def quat_xyzw_to_wxyz(q_xyzw: Array) -> Array:
+    """Reorder scalar-last quaternions (...,4) to scalar-first (a copy)."""
+    return np.asarray(q_xyzw)[..., [3, 0, 1, 2]]
+
+
+def quat_wxyz_to_xyzw(q_wxyz: Array) -> Array:
+    """Reorder scalar-first quaternions (...,4) to scalar-last (a copy)."""
+    return np.asarray(q_wxyz)[..., [1, 2, 3, 0]]
+
+
+# --- single poses on the per-frame paths (MuJoCo's C helpers: no batching overhead) ------------
+
+
+def quat_to_mat1(q_wxyz: Array) -> Array:
+    """3×3 rotation of one unit quaternion (wxyz), via MuJoCo (cheaper than
+    :func:`quat_to_mat` for one)."""
+    out = np.empty(9)
+    mujoco.mju_quat2Mat(out, np.ascontiguousarray(q_wxyz, dtype=float))
+    return out.reshape(3, 3)
+
+
+def pose_mul1(p_a: Array, r_a: Array, q_a: Array, p_b: Array, q_b: Array) -> tuple[Array, Array]:
+    """T_a ∘ T_b for single poses, with ``r_a`` (q_a's matrix) already at hand."""
+    q = np.empty(4)
+    mujoco.mju_mulQuat(q, q_a, q_b)
+    return p_a + r_a @ p_b, q

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from sim.errors import ConfigError, GraspInputError
-from sim.hand.config import HANDS_DIR, load_hand_config
+from sim.hand.config import hand_config_path, load_hand_config
 from sim.hand.model import Hand
 from tests.conftest import needs_menagerie
 
@@ -85,7 +85,7 @@ def test_wrong_length_joint_vector_is_a_clear_error(shadow: Hand) -> None:
 
 @needs_menagerie
 def test_unknown_joint_in_config_names_file_and_joint(tmp_path: Path) -> None:
-    text = (HANDS_DIR / "shadow_right.toml").read_text()
+    text = hand_config_path("shadow_right").read_text()
     text = text.replace('"rh_FFJ3"', '"rh_FFJ9"', 1).replace("rh_FFJ3 = [20, 50], ", "")
     bad = tmp_path / "bad_hand.toml"
     bad.write_text(text)
@@ -94,7 +94,7 @@ def test_unknown_joint_in_config_names_file_and_joint(tmp_path: Path) -> None:
 
 
 def test_config_errors_name_the_key(tmp_path: Path) -> None:
-    base = (HANDS_DIR / "shadow_right.toml").read_text()
+    base = hand_config_path("shadow_right").read_text()
     cases = {
         "v_u = [0.0, 0.0, 1.0]": ("v_u = [0.0, -2.0, 0.0]", "parallel"),
         "rh_FFJ3 = [20, 50]": ("rh_FFJ3 = [50, 20]", "empty range"),

@@ -24,7 +24,7 @@ def _assets_args(p: argparse.ArgumentParser) -> None:
 def assets(args: argparse.Namespace, console: Console) -> int:
     """List the hands and objects dexaug can find, and what is broken and why.
 
-    Hands come from configs/hands/*.toml resolved through mujoco_menagerie (MENAGERIE_ROOT);
+    Hands come from configs/hands/*/hand.toml resolved through mujoco_menagerie (MENAGERIE_ROOT);
     objects are the procedural primitives plus every YCB object under DEXAUG_YCB_ROOT.
     """
     from sim.errors import DexaugError
@@ -38,13 +38,13 @@ def assets(args: argparse.Namespace, console: Console) -> int:
     hands = Table(title="hands")
     for col in ("hand", "joints", "actuators", "fingers", "status"):
         hands.add_column(col)
-    for path in sorted(HANDS_DIR.glob("*.toml")):
+    for path in sorted(HANDS_DIR.glob("*/hand.toml")):
         try:
             hand = Hand.load(path)
-            hands.add_row(path.stem, str(hand.nq), str(hand.model.nu),
+            hands.add_row(path.parent.name, str(hand.nq), str(hand.model.nu),
                           ", ".join(hand.finger_names), "[green]ok")
         except DexaugError as exc:
-            hands.add_row(path.stem, "", "", "", f"[red]{exc}")
+            hands.add_row(path.parent.name, "", "", "", f"[red]{exc}")
     console.print(hands)
     objects = Table(title="objects")
     for col in ("object", "source", "mass (kg)", "status"):
@@ -67,7 +67,7 @@ def _validate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--hand", default="shadow_right", help="hand config name (configs/hands)")
     p.add_argument("--object", help="only grasps of this object")
     p.add_argument("--grasps", type=Path, help="reference-grasp TOML (default: "
-                   "configs/grasps/<hand>.toml)")
+                   "configs/hands/<hand>/grasps.toml)")
     p.add_argument("--protocol", choices=("lift-drop", "six-dir", "both"), default="both")
     p.add_argument("--render", type=Path, metavar="DIR",
                    help="write a PNG of each grasp after closing (contacts marked) into DIR")
@@ -139,7 +139,7 @@ def validate(args: argparse.Namespace, console: Console) -> int:
     """Validate grasps in MuJoCo with the lift-drop and/or six-dir protocol (DESIGN §5).
 
     Without --grasps, validates the hand's hand-built reference grasps
-    (configs/grasps/<hand>.toml). Prints per grasp: pass/fail and why, contact count,
+    (configs/hands/<hand>/grasps.toml). Prints per grasp: pass/fail and why, contact count,
     penetration, object displacement and rotation, and the GWS ε/volume of the simulated contacts.
     """
     protocols = ("lift-drop", "six-dir") if args.protocol == "both" else (args.protocol,)
@@ -238,7 +238,7 @@ def _workspace_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--hand", default="shadow_right", help="hand config name (configs/hands)")
     p.add_argument("--demo", metavar="GRASP",
                    help="centre the clouds on a demonstration: the name of a reference grasp in "
-                   "configs/grasps/<hand>.toml (its joints, and its fingertip contacts on its "
+                   "configs/hands/<hand>/grasps.toml (its joints, and its fingertip contacts on its "
                    "object found in MuJoCo)")
     p.add_argument("--out", type=Path, help="also save the clouds to this .npz file")
     p.add_argument("--render", type=Path, metavar="PNG", help="render the clouds over the hand")

@@ -1,4 +1,4 @@
-"""Hand descriptions read from ``configs/hands/<name>.toml``.
+"""Hand descriptions read from ``configs/hands/<name>/hand.toml``.
 
 Everything hand-specific (which bodies are fingertips, which joints form a finger, coupling,
 fingertip vectors, palm frame) lives in these files, so the rest of dexaug works for any hand
@@ -137,17 +137,30 @@ def _finger(sec: Section) -> FingerConfig:
         tip_site_pos=np.array(sec.floats("tip_site_pos", 3)), ranges_rad=ranges)
 
 
+def hand_dir(name: str) -> Path:
+    """The folder of a hand (``configs/hands/<name>/``): everything dexaug knows about that
+    hand lives there — ``hand.toml`` (model, palm frame, fingers, workspace ranges),
+    ``retarget.toml`` (operator mapping), ``grasps.toml`` (reference grasps), ``README.md``
+    (the model card)."""
+    return HANDS_DIR / name
+
+
+def hand_names() -> list[str]:
+    """Every hand with a folder under ``configs/hands/`` (sorted)."""
+    return sorted(p.parent.name for p in HANDS_DIR.glob("*/hand.toml"))
+
+
 def hand_config_path(name_or_path: str | Path) -> Path:
-    """The TOML file of a hand given by name (``configs/hands/<name>.toml``) or by path."""
+    """The TOML file of a hand given by name (``configs/hands/<name>/hand.toml``) or by path."""
     path = Path(name_or_path)
-    return path if path.suffix == ".toml" else HANDS_DIR / f"{name_or_path}.toml"
+    return path if path.suffix == ".toml" else hand_dir(str(name_or_path)) / "hand.toml"
 
 
 def load_hand_config(name_or_path: str | Path) -> HandConfig:
-    """Load ``configs/hands/<name>.toml`` (or a TOML path) and check it is self-consistent."""
+    """Load ``configs/hands/<name>/hand.toml`` (or a TOML path) and check it is self-consistent."""
     path = hand_config_path(name_or_path)
     if Path(name_or_path).suffix != ".toml" and not path.is_file():
-        known = sorted(p.stem for p in HANDS_DIR.glob("*.toml"))
+        known = hand_names()
         raise ConfigError(f"unknown hand {name_or_path!r}: no {path}; known hands: {known}")
     root = load_toml(path)
     root.reject_unknown({"model", "palm", "fingers", "grasp"})
@@ -179,7 +192,8 @@ def load_hand_config(name_or_path: str | Path) -> HandConfig:
         sec = grasp.section(key, {})
         postures[key] = {k: sec.float(k) for k in sec.data}
     return HandConfig(
-        name=path.stem, file=path, menagerie=menagerie, entry=model.str("entry", None),
+        name=path.parent.name if path.name == "hand.toml" else path.stem, file=path,
+        menagerie=menagerie, entry=model.str("entry", None),
         model_path=(path.parent / model_path).resolve() if model_path else None,
         root_body=model.str("root_body", None),
         palm=PalmConfig(body=palm.str("body"), pos=np.array(palm.floats("pos", 3, [0.0] * 3)),

@@ -1,4 +1,4 @@
-"""Hand-built reference grasps (``configs/grasps/<hand>.toml``): known-good grasps used as the
+"""Hand-built reference grasps (``configs/hands/<hand>/grasps.toml``): known-good grasps used as the
 validator's ground truth, by ``make demo`` and by the tests. Joints are given by name (radians);
 joints not named are 0, coupled followers are filled from their leaders when not named."""
 
@@ -12,10 +12,8 @@ import numpy as np
 from sim.config import load_toml
 from sim.errors import ConfigError
 from sim.grasp import Grasp
+from sim.hand.config import hand_dir
 from sim.hand.model import Hand
-from sim.paths import CONFIG_DIR
-
-GRASPS_DIR = CONFIG_DIR / "grasps"
 
 
 @dataclass(frozen=True)
@@ -27,7 +25,7 @@ class ReferenceGrasp:
 
 
 def load_reference_grasps(hand: Hand, path: Path | None = None) -> list[ReferenceGrasp]:
-    path = path or GRASPS_DIR / f"{hand.name}.toml"
+    path = path or hand_dir(hand.name) / "grasps.toml"
     root = load_toml(path)
     root.reject_unknown({"grasps"})
     out = []

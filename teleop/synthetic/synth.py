@@ -25,7 +25,7 @@ The human hand
     metacarpal's centre with the metacarpal's frame, WRIST carries the hand frame itself.
 
 The grasp
-    With a reference grasp (``configs/grasps/<hand>.toml``) for the object, the episode is
+    With a reference grasp (``configs/hands/<hand>/grasps.toml``) for the object, the episode is
     built so that the *retargeted* robot reproduces it: the wrist pose is the inverse of the
     retargeter's wrist correspondence (operator wrist = robot palm pose ∘ (palm ← wrist), see
     :mod:`teleop.retarget.retargeter`), and each operator fingertip is placed where the retargeter's
