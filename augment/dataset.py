@@ -84,8 +84,8 @@ def _empty_like_table(t: ObjectTable) -> dict[str, np.ndarray]:
 def from_fsg(grasps: Sequence[Any], joint_names: Sequence[str], finger_names: Sequence[str],
              validation: Sequence[Any] | None = None, demo_id: str = "",
              attrs: Mapping[str, Any] | None = None, split_rejected: bool = True) -> ObjectTable:
-    """Build a table from :class:`augment.fsg.sampler.FsgGrasp` objects and, optionally, their
-    :class:`sim.validate.validator.ValidationResult` (same order). With ``split_rejected``, grasps that
+    """Build a table from :class:`augment.fsg.result.FsgGrasp` objects and, optionally, their
+    :class:`sim.validate.result.ValidationResult` (same order). With ``split_rejected``, grasps that
     failed validation go to the ``rejected`` side table."""
     n = len(grasps)
     if validation is not None and len(validation) != n:

@@ -28,11 +28,13 @@ CAPTURE = SHARED_ASSETS / "handdata" / "quest3_webxr" / "cap.min.js"
 
 def _bridge_proc(port: int, rig: str, view: bool, seconds: float, ready: mp.Event) -> None:
     os.environ.setdefault("MUJOCO_GL", "egl")
-    from teleop.bridge.bridge import Bridge, load_bridge_config
-    from teleop.input.webxr import iwer_hand_frames, load_iwer_capture
+    from teleop.bridge.bridge import Bridge
+    from teleop.bridge.config import load_bridge_config
+    from teleop.input.iwer import iwer_hand_frames, load_iwer_capture
     frames = iwer_hand_frames(load_iwer_capture(CAPTURE))
     cfg = dataclasses.replace(load_bridge_config(), view_enabled=view, view_rate_hz=30.0)
-    with Bridge("shadow_right", None, rig, cfg, listen_port=port,
+    from sim.hand.config import default_hand_name
+    with Bridge(default_hand_name(), None, rig, cfg, listen_port=port,
                 calibration_frames=frames) as bridge:
         print(f"bridge: view {'on' if bridge.view_active else 'off'}", flush=True)
         ready.set()
@@ -48,7 +50,7 @@ def main() -> None:
     args = ap.parse_args()
 
     from teleop import keys
-    from teleop.input.webxr import iwer_hand_frames, load_iwer_capture
+    from teleop.input.iwer import iwer_hand_frames, load_iwer_capture
     from teleop.messages import encode
 
     frames = [f for f in iwer_hand_frames(load_iwer_capture(CAPTURE)) if f.right is not None]

@@ -1,6 +1,7 @@
-"""Per-frame retargeting latency and accuracy on the real Quest 3 capture (right hand → Shadow).
+"""Per-frame retargeting latency and accuracy on the real Quest 3 capture (right hand → robot hand).
 
-Run: ``.venv/bin/python benchmarks/bench_retarget.py [--repeats N] [--hand shadow_right]``.
+Run: ``.venv/bin/python benchmarks/bench_retarget.py [--repeats N] [--hand NAME]`` (default: the
+default hand, ``configs/hands/default.toml``).
 
 DESIGN §6 budgets ≤ 1 ms median and ≤ 3 ms p99 per frame on one core, so the process is pinned
 to one CPU and BLAS threads are limited to one before NumPy loads. The capture is replayed
@@ -28,16 +29,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numpy as np  # noqa: E402
 
+from sim.hand.config import default_hand_name  # noqa: E402
 from sim.hand.model import Hand  # noqa: E402
 from sim.paths import SHARED_ASSETS  # noqa: E402
-from teleop.input.webxr import iwer_hand_frames, load_iwer_capture  # noqa: E402
+from teleop.input.iwer import iwer_hand_frames, load_iwer_capture  # noqa: E402
 from teleop.messages import JOINT_INDEX  # noqa: E402
-from teleop.retarget.retargeter import (  # noqa: E402
-    Retargeter,
-    RetargetTrace,
-    load_retarget_config,
-    retarget_frames,
-)
+from teleop.retarget.config import load_retarget_config  # noqa: E402
+from teleop.retarget.retargeter import Retargeter  # noqa: E402
+from teleop.retarget.trace import RetargetTrace, retarget_frames  # noqa: E402
 
 CAPTURE = SHARED_ASSETS / "handdata" / "quest3_webxr" / "cap.min.js"
 
@@ -67,7 +66,7 @@ def _run(hand: Hand, config, frames, repeats: int) -> tuple[RetargetTrace, np.nd
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=5, help="timed passes over the capture")
-    parser.add_argument("--hand", default="shadow_right")
+    parser.add_argument("--hand", default=default_hand_name())
     parser.add_argument("--capture", type=Path, default=CAPTURE)
     args = parser.parse_args()
 

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from sim.grasp import Grasp
+from sim.hand.config import default_hand_name
 from sim.hand.model import Hand
 from sim.validate.batch import default_workers, validate_many
 
@@ -31,7 +32,7 @@ OBJECTS = ["004_sugar_box", "005_tomato_soup_can", "043_phillips_screwdriver", "
 def fsg_grasps(hand: Hand, objects: list[str], n: int, seed: int, budget_s: float,
                workers: int) -> dict[str, list[Grasp]]:
     """FSG grasps per object on the manual (demo-free) workspace."""
-    from augment.autows.workspace import build_workspace
+    from augment.autows.build import build_workspace
     from augment.object_cloud import object_cloud
     from dexaug.pipeline.run import generate_grasps
     from sim.world.objects import load_object
@@ -65,7 +66,7 @@ def load(path: Path) -> dict[str, list[Grasp]]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--hand", default="shadow_right")
+    parser.add_argument("--hand", default=default_hand_name())
     parser.add_argument("--objects", nargs="+", default=OBJECTS)
     parser.add_argument("--n", type=int, default=40, help="FSG grasps per object")
     parser.add_argument("--seed", type=int, default=1)

@@ -16,6 +16,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from sim.grasp import Grasp
+from sim.hand.config import default_hand_name
 from sim.hand.model import Hand
 from sim.hand.reference_grasps import load_reference_grasps
 from sim.validate.batch import validate_many
@@ -38,7 +39,7 @@ def perturbed(hand: Hand, base: list[Grasp], n: int, seed: int) -> list[Grasp]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--hand", default="shadow_right")
+    parser.add_argument("--hand", default=default_hand_name())
     parser.add_argument("--n", type=int, default=40, help="grasps per object")
     parser.add_argument("--objects", nargs="+", default=["004_sugar_box", "024_bowl"])
     parser.add_argument("--workers", type=int, nargs="+", default=[2])

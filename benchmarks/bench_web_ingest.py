@@ -36,9 +36,11 @@ def _bridge_proc(zport: int, rig: str, view: bool, seconds: float, ready: mp.Eve
     import dataclasses
     import os
     os.environ.setdefault("MUJOCO_GL", "egl")
-    from teleop.bridge.bridge import Bridge, load_bridge_config
+    from teleop.bridge.bridge import Bridge
+    from teleop.bridge.config import load_bridge_config
     cfg = dataclasses.replace(load_bridge_config(), view_enabled=view)
-    with Bridge("shadow_right", None, rig, cfg, connect_ports=(zport,)) as bridge:
+    from sim.hand.config import default_hand_name
+    with Bridge(default_hand_name(), None, rig, cfg, connect_ports=(zport,)) as bridge:
         print(f"bridge: view {'on' if bridge.view_active else 'off'}", flush=True)
         ready.set()
         bridge.run(duration_s=seconds)

@@ -1,6 +1,6 @@
 """AutoWS workspace-cloud build times and sizes for every hand config, on one core.
 
-Run: ``.venv/bin/python benchmarks/bench_workspace.py [--repeats N] [--hands shadow_right ...]``.
+Run: ``.venv/bin/python benchmarks/bench_workspace.py [--repeats N] [--hands HAND ...]``.
 
 For each hand: per-finger point counts, faces and memory, then the time to build all clouds
 from the manual ranges (the paper's Table 1 for the Shadow Hand) and from a demonstration,
@@ -28,17 +28,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numpy as np  # noqa: E402
 
+from augment.autows.build import build_workspace  # noqa: E402
+from augment.autows.cache import cache_path  # noqa: E402
+from augment.autows.cloud import WorkspaceCloud  # noqa: E402
 from augment.autows.fingertip import clear_caches, hand_fingertip_faces  # noqa: E402
-from augment.autows.workspace import (  # noqa: E402
-    DemoSeed,
-    WorkspaceCloud,
-    build_workspace,
-    cache_path,
-    load_autows_params,
-)
+from augment.autows.params import load_autows_params  # noqa: E402
+from augment.autows.seed import DemoSeed  # noqa: E402
+from sim.hand.config import hand_names  # noqa: E402
 from sim.hand.model import Hand  # noqa: E402
-
-HANDS = ("shadow_right", "allegro_right", "robotiq_2f85")
 
 
 def synthetic_demo(hand: Hand) -> DemoSeed:
@@ -81,7 +78,7 @@ def time_builds(hand: Hand, demo: DemoSeed | None,
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--hands", nargs="+", default=list(HANDS))
+    ap.add_argument("--hands", nargs="+", default=hand_names())
     args = ap.parse_args()
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})

@@ -33,7 +33,7 @@ from sim.config import load_toml
 from sim.paths import CONFIG_DIR, REPO_ROOT
 
 if TYPE_CHECKING:
-    from augment.fsg.sampler import FsgGrasp
+    from augment.fsg.result import FsgGrasp
 
 OBJECTS = ("004_sugar_box", "005_tomato_soup_can", "024_bowl", "043_phillips_screwdriver",
            "062_dice")
@@ -91,15 +91,17 @@ def measure(objects: list[str], methods: list[str], workspaces: list[str], *, n:
             budget_s: float, workers: int, seed: int = 0, six_dir: bool = True,
             on_row: Callable[[Row], None] | None = None) -> list[Row]:
     """Measure every (object, workspace, method) row; see the module docstring."""
-    from augment.autows.workspace import DemoSeed, build_workspace
+    from augment.autows.build import build_workspace
+    from augment.autows.seed import DemoSeed
     from augment.object_cloud import object_cloud
     from dexaug.pipeline.run import demo_fingers, generate_grasps
     from sim.demo import load_demo
+    from sim.hand.config import default_hand_name
     from sim.hand.model import Hand
     from sim.validate.batch import validate_many
     from sim.world.objects import load_object
 
-    hand = Hand.load("shadow_right")
+    hand = Hand.load(default_hand_name())
     finger_joints = {j for f in hand.config.fingers for j in f.joints}
     joint_mask = np.array([j in finger_joints for j in hand.joint_names])
     manual = build_workspace(hand)

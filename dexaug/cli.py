@@ -19,7 +19,8 @@ from sim.errors import DexaugError
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from dexaug.commands import augment, core, stream, ui  # noqa: F401  (registers them)
+    # importing the command modules registers their subcommands
+    from dexaug.commands import assets, augment, demo, stream, teleop, ui, validate, workspace  # noqa: F401
 
     parser = argparse.ArgumentParser(
         prog="dexaug", description="Teleoperation-to-dataset system for dexterous robot hands: "

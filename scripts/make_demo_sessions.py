@@ -34,11 +34,13 @@ import shutil
 import tempfile
 from pathlib import Path
 
-from augment.autows.workspace import DemoSeed, build_workspace
+from augment.autows.build import build_workspace
+from augment.autows.seed import DemoSeed
 from augment.object_cloud import object_cloud
 from dexaug.pipeline.run import demo_fingers, generate_grasps
 from dexaug.pipeline.scripted_demos import demonstrable_grasps
 from sim.demo import Demo, DemoError, save_demo
+from sim.hand.config import default_hand_name
 from sim.hand.model import Hand
 from sim.io import atomic_path
 from sim.paths import REPO_ROOT, ensure_menagerie_root
@@ -68,7 +70,7 @@ def trial_pass_rate(hand: Hand, demo: Demo, n: int) -> float:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--hand", default="shadow_right")
+    ap.add_argument("--hand", default=default_hand_name())
     ap.add_argument("--objects", nargs="*", default=list(OBJECTS))
     ap.add_argument("--candidates", type=int, default=60, help="FSG grasps proposed per object")
     ap.add_argument("--tries", type=int, default=8, help="passing grasps tried per object")
@@ -76,7 +78,7 @@ def main() -> None:
                     help="grasps of each demo's trial augmentation")
     args = ap.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    for noisy in ("teleop", "augment.fsg.sampler", "sim"):
+    for noisy in ("teleop", "augment.fsg", "sim"):
         logging.getLogger(noisy).setLevel(logging.WARNING)
     ensure_menagerie_root()
     hand = Hand.load(args.hand)

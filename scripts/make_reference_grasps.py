@@ -1,4 +1,6 @@
-"""Rebuild ``configs/hands/shadow_right/grasps.toml``: hand-built Shadow Hand grasps on YCB objects.
+"""Rebuild the default hand's ``configs/hands/<hand>/grasps.toml``: hand-built grasps on YCB objects.
+
+The placements below were chosen for the Shadow Hand (the default hand).
 
 Each grasp is made the way a person would: put the palm against the object, close the fingers
 until they stop (sim.world.closing), and store what the hand ended up with. Run:
@@ -9,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.hand.config import hand_dir
+from sim.hand.config import default_hand_name, hand_dir
 from sim.hand.model import Hand
 from sim.io import write_bytes_atomic
 from sim.transforms import mat_to_quat
@@ -34,7 +36,7 @@ SPECS = [
 
 
 def main() -> None:
-    hand = Hand.load("shadow_right")
+    hand = Hand.load(default_hand_name())
     lines = ["# Hand-built reference grasps of the Shadow Hand (ground truth for the validator).",
              "# Made by scripts/make_reference_grasps.py: palm placed by hand, fingers closed",
              "# in MuJoCo until they stop on the held-still object. Radians and metres; palm pose",

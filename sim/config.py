@@ -1,8 +1,8 @@
 """Typed, validated access to TOML config files.
 
 A ``Section`` wraps one TOML table and remembers the file and dotted key path, so every lookup
-that fails says exactly where (``configs/hands/shadow_right/hand.toml: fingers[2].joints: expected a
-list of strings``). Config dataclasses are built from Sections; nothing reads raw dicts.
+that fails says exactly where (``configs/hands/<hand>/hand.toml: fingers[2].joints: expected
+a list of strings``). Config dataclasses are built from Sections; nothing reads raw dicts.
 """
 
 from __future__ import annotations

@@ -24,12 +24,12 @@ pytestmark = pytest.mark.skipif(not CAPTURE.is_file(), reason=f"no hand capture 
 
 @pytest.fixture(scope="module")
 def frames() -> list[HandFrame]:
-    from teleop.input.webxr import iwer_hand_frames, load_iwer_capture
+    from teleop.input.iwer import iwer_hand_frames, load_iwer_capture
     return iwer_hand_frames(load_iwer_capture(CAPTURE))
 
 
 def _config(**kw):
-    from teleop.bridge.bridge import load_bridge_config
+    from teleop.bridge.config import load_bridge_config
     cfg = load_bridge_config()
     return dataclasses.replace(cfg, **kw)
 
@@ -221,7 +221,7 @@ def test_bad_input_is_counted_and_a_vanished_hand_holds(frames):
 
 def test_bridge_config_errors_name_file_and_key(tmp_path):
     from sim.errors import ConfigError
-    from teleop.bridge.bridge import load_bridge_config
+    from teleop.bridge.config import load_bridge_config
     bad = tmp_path / "teleop.toml"
     bad.write_text("[bridge]\nview_rate_hz = -1.0\n")
     with pytest.raises(ConfigError, match=r"teleop\.toml.*view_rate_hz"):

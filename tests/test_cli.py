@@ -73,6 +73,18 @@ def test_synth_session_retargets(tmp_path: Path, capsys) -> None:
     assert "504 frames," in out  # the retargeter read every recorded frame back
 
 
+def test_hand_default_comes_from_the_default_file(capsys) -> None:
+    from sim.hand.config import default_hand_name
+
+    for command in ("validate", "workspace", "generate", "retarget", "synth", "bridge"):
+        with pytest.raises(SystemExit):
+            build_parser().parse_args([command, "--help"])
+        out = " ".join(capsys.readouterr().out.split())
+        assert f"default {default_hand_name()}" in out, command
+    args = build_parser().parse_args(["validate"])
+    assert args.hand == default_hand_name()
+
+
 def test_unknown_hand_is_one_line_error(capsys) -> None:
     assert main(["validate", "--hand", "no_such_hand"]) == 2
     err = capsys.readouterr().err

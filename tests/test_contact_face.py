@@ -10,15 +10,10 @@ import pytest
 import trimesh
 from scipy.spatial import cKDTree
 
-from augment.geometry.contact_face import (
-    ContactFace,
-    ContactFaceError,
-    contact_face,
-    extra_faces,
-    viewpoint,
-    visible_pulp_cloud,
-    visible_pulp_indices,
-)
+from augment.geometry.contact_face import contact_face, extra_faces
+from augment.geometry.face import ContactFace, ContactFaceError
+from augment.geometry.inscribed import inscribed_rect, rect_at_origin
+from augment.geometry.pulp import viewpoint, visible_pulp_cloud, visible_pulp_indices
 from augment.geometry.sampling import mesh_area_m2, poisson_disk_sample, poisson_radius_m
 from augment.geometry.visibility import VisibilityError, hidden_point_removal
 from sim.errors import DexaugError
@@ -225,6 +220,52 @@ def test_planar_diamond_rectangle_centred_on_point() -> None:
     assert face.area == pytest.approx(2.0 * mm * mm)
     circle = contact_face(points, normals, [0.0, 0.0, 0.0])
     assert circle.radius == pytest.approx(2.0 / np.sqrt(5.0) * mm)  # distance to an edge
+
+
+@pytest.mark.parametrize("half_mm", [(1.0, 1.0), (2.0, 1.0)], ids=["square", "2:1"])
+def test_rect_face_of_a_rectangle_cloud(half_mm: tuple[float, float]) -> None:
+    """shape="rect" on a planar cloud filling [-A, A] x [-B, B] (z = 0, normals +z): the face is
+    that rectangle, half-edge A along v_u (+x) and B across it (n × v_u = +y), centred at the
+    origin, whether centred on the query point there or found anywhere from an off-centre query
+    ("inscribed"); centred on an off-centre point, the x half-edge is the distance to the nearer
+    side. With v_u along +y the axes swap (first half-edge B along +y, second A along −x)."""
+    mm = 1e-3
+    a, b = half_mm[0] * mm, half_mm[1] * mm
+    points, normals = _planar_cloud(np.array([[-a, -b], [a, -b], [a, b], [-a, b]]), 0.1 * mm)
+    face = contact_face(points, normals, [0.0, 0.0, 0.0], shape="rect", v_u=[1.0, 0.0, 0.0])
+    assert face.shape == "rect" and face.radius is None
+    np.testing.assert_allclose(face.centre, [0.0, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(face.half_edges, [[a, 0, 0], [0, b, 0]], atol=1e-12)
+    assert face.area == pytest.approx(4 * a * b, rel=1e-9)
+    assert face.extent_along([1.0, 0.0, 0.0]) == pytest.approx(a, rel=1e-9)
+    assert face.extent_along([0.0, 1.0, 0.0]) == pytest.approx(b, rel=1e-9)
+    across = contact_face(points, normals, [0.0, 0.0, 0.0], shape="rect", v_u=[0.0, 1.0, 0.0])
+    np.testing.assert_allclose(across.half_edges, [[0, b, 0], [-a, 0, 0]], atol=1e-12)
+
+    off = [0.5 * mm, 0.0, 0.0]  # a grid point
+    at_point = contact_face(points, normals, off, shape="rect", v_u=[1.0, 0.0, 0.0])
+    np.testing.assert_allclose(at_point.centre, off, atol=1e-12)
+    np.testing.assert_allclose(at_point.half_edges, [[a - 0.5 * mm, 0, 0], [0, b, 0]], atol=1e-12)
+    moved = contact_face(points, normals, off, shape="rect", v_u=[1.0, 0.0, 0.0],
+                         centre="inscribed")
+    # the LPs work in metres and HiGHS's feasibility tolerance is 1e-7 absolute: the inscribed
+    # rectangle may overshoot the hull by about 0.1 µm
+    np.testing.assert_allclose(moved.centre, [0.0, 0.0, 0.0], atol=2e-4 * mm)
+    np.testing.assert_allclose(moved.half_edges, [[a, 0, 0], [0, b, 0]], atol=2e-4 * mm)
+
+
+def test_inscribed_rectangles_from_edges() -> None:
+    """The polygon given directly as edge normals / offsets ({x: n_i·x <= h_i})."""
+    normals = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
+    # [-2, 2] x [-1, 1]: centred at the origin, the rectangle itself
+    assert rect_at_origin(normals, np.array([2.0, 2.0, 1.0, 1.0])) == pytest.approx((2.0, 1.0))
+    # [1, 3] x [0, 4] (origin outside): anywhere, the rectangle itself, centre (2, 2)
+    xy, a, b = inscribed_rect(normals, np.array([3.0, -1.0, 4.0, 0.0]), 2.0, 4.0)
+    np.testing.assert_allclose(xy, [2.0, 2.0], atol=1e-6)
+    assert (a, b) == pytest.approx((1.0, 2.0), rel=1e-6)
+    # the diamond |x| + |y| <= 1: the best centred rectangle is the square a = b = 1/2
+    diamond = np.array([[1.0, 1.0], [-1.0, 1.0], [1.0, -1.0], [-1.0, -1.0]]) / np.sqrt(2.0)
+    assert rect_at_origin(diamond, np.full(4, 1 / np.sqrt(2.0))) == pytest.approx((0.5, 0.5))
 
 
 def test_box_top_face_circle_and_rectangle(box_cloud: tuple[np.ndarray, np.ndarray, float],

@@ -110,7 +110,7 @@ def _post(url: str, body: bytes) -> tuple[int, Any]:
 @needs_menagerie
 @needs_ycb
 def test_api_lists_errors_and_survives_a_failed_job(tmp_path: Path) -> None:
-    from dexaug.dashboard import Dashboard, DashboardConfig
+    from dexaug.dashboard.server import Dashboard, DashboardConfig
     from dexaug.pipeline.options import AugmentOptions
 
     sessions = _sessions_dir(tmp_path)
@@ -153,7 +153,7 @@ def test_api_lists_errors_and_survives_a_failed_job(tmp_path: Path) -> None:
 @needs_ycb
 @pytest.mark.timeout(240)
 def test_augment_a_demo_from_the_page(chromium, tmp_path: Path) -> None:
-    from dexaug.dashboard import Dashboard, DashboardConfig
+    from dexaug.dashboard.server import Dashboard, DashboardConfig
     from dexaug.pipeline.options import AugmentOptions
 
     t0 = time.perf_counter()

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from sim.errors import ConfigError, GraspInputError
-from sim.hand.config import hand_config_path, load_hand_config
+from sim.hand.config import hand_config_path, hand_names, load_hand_config
 from sim.hand.model import Hand
 from tests.conftest import needs_menagerie
 
-HANDS = ["shadow_right", "allegro_right", "robotiq_2f85"]
+HANDS = hand_names()
 
 
 def _random_q(hand: Hand, n: int, seed: int) -> np.ndarray:

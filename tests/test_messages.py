@@ -18,16 +18,9 @@ from sim import transforms
 from sim.errors import DexaugError
 from sim.paths import SHARED_ASSETS
 from teleop.input import frames
-from teleop.input.webxr import (
-    WEBXR_JOINTS,
-    CaptureError,
-    IwerCapture,
-    from_webxr_joints,
-    hand_frame_from_webxr,
-    iwer_hand_frames,
-    load_iwer_capture,
-    parse_js_literal,
-)
+from teleop.input.iwer import IwerCapture, iwer_hand_frames, load_iwer_capture
+from teleop.input.js_literal import CaptureError, parse_js_literal
+from teleop.input.webxr import WEBXR_JOINTS, from_webxr_joints, hand_frame_from_webxr
 from teleop.messages import (
     FINGERTIPS,
     HEADER_SIZE,
@@ -110,8 +103,8 @@ def test_xr_to_mujoco_is_a_proper_rotation_with_the_documented_axes() -> None:
 def test_quaternion_conversion_agrees_with_rotating_vectors() -> None:
     rng = np.random.default_rng(1)
     q_xr_wxyz = random_quats_wxyz(rng, 50)
-    q_xr_xyzw = frames.quat_wxyz_to_xyzw(q_xr_wxyz)
-    np.testing.assert_array_equal(frames.quat_xyzw_to_wxyz(q_xr_xyzw), q_xr_wxyz)
+    q_xr_xyzw = transforms.quat_wxyz_to_xyzw(q_xr_wxyz)
+    np.testing.assert_array_equal(transforms.quat_xyzw_to_wxyz(q_xr_xyzw), q_xr_wxyz)
     v = rng.normal(size=(50, 3))
     q_mj = frames.xr_to_mujoco_quat_wxyz(q_xr_xyzw)
     # rotate in XR then map == map then rotate with the converted quaternion
@@ -136,7 +129,7 @@ def test_pose_helpers_compose_invert_and_commute_with_the_conversion() -> None:
     np.testing.assert_allclose(np.abs(q_id[:, 0]), 1, atol=1e-12)
     # compose in XR then convert == convert then compose
     pc, qc = transforms.pose_mul(pa, qa, pb, qb)
-    conv = [frames.xr_to_mujoco_pose(p, frames.quat_wxyz_to_xyzw(q))
+    conv = [frames.xr_to_mujoco_pose(p, transforms.quat_wxyz_to_xyzw(q))
             for p, q in ((pa, qa), (pb, qb), (pc, qc))]
     p2, q2 = transforms.pose_mul(*conv[0], *conv[1])
     np.testing.assert_allclose(p2, conv[2][0], atol=1e-12)
@@ -246,7 +239,7 @@ def test_validate_rejects_broken_invariants() -> None:
 
 def synthetic_webxr_hand(rng: np.random.Generator) -> tuple[np.ndarray, ...]:
     p = rng.uniform(-0.5, 1.5, (25, 3))
-    q = frames.quat_wxyz_to_xyzw(random_quats_wxyz(rng, 25))
+    q = transforms.quat_wxyz_to_xyzw(random_quats_wxyz(rng, 25))
     r = rng.uniform(0.005, 0.02, 25)
     return p, q, r
 

@@ -18,7 +18,9 @@ import pytest
 
 from sim.errors import AssetError
 from sim.paths import YCB_ENV, ycb_root
-from sim.world.objects import ContactParams, ObjectAsset, list_objects, load_object
+from sim.world.catalog import list_objects
+from sim.world.object_spec import ContactParams
+from sim.world.objects import ObjectAsset, load_object
 from sim.world.primitives import PRIMITIVES
 from tests.conftest import needs_ycb
 

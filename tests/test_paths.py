@@ -36,6 +36,6 @@ def test_missing_menagerie_root_names_variable_and_path(tmp_path: Path,
 def test_menagerie_root_without_the_robot_is_a_clear_error(tmp_path: Path,
                                                            monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv(MENAGERIE_ENV, str(tmp_path))
-    with pytest.raises(AssetError, match=r"shadow_right\.toml: cannot resolve Menagerie model "
+    with pytest.raises(AssetError, match=r"shadow_right/hand\.toml: cannot resolve Menagerie model "
                                          r"'shadow_hand'.*not found under MENAGERIE_ROOT"):
         Hand.load("shadow_right")

@@ -7,6 +7,7 @@ dataset; the bad-input checks build small sessions with the real recorder.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import re
@@ -81,7 +82,7 @@ def test_demo_of_the_committed_session_and_file_round_trip(tmp_path: Path) -> No
     assert "thumb" in d.fingers and len(d.fingers) >= 2 and d.duration_s >= 0.3
     # contacts lie on the can: within a few mm of its surface in the object frame
     from sim.world.objects import load_object
-    from teleop.synthetic.synth import surface_distance_m
+    from teleop.synthetic.surface import surface_distance_m
 
     mesh = load_object(d.object).surface_mesh()
     for pts in d.contact_points_obj.values():
@@ -115,7 +116,7 @@ def test_session_to_validated_dataset_and_report(shadow, tmp_path: Path) -> None
     """A recorded session in, a dataset out: ≥ 20 grasps that pass lift-drop, joint angles
     within the demo-centred ranges, the report stating the dataset's numbers; re-running skips
     the finished demo."""
-    from augment.autows.workspace import load_autows_params
+    from augment.autows.params import load_autows_params
     from dexaug.pipeline.options import AugmentOptions
     from dexaug.pipeline.run import augment_session
 
@@ -141,15 +142,17 @@ def test_session_to_validated_dataset_and_report(shadow, tmp_path: Path) -> None
     assert int(shown["grasps-passed-validation"]) == len(t)
     assert int(shown["grasps-generated-fsg"]) == len(t) + len(t.rejected)
     assert (Path(s.report).parent / "palm_cloud.png").stat().st_size > 1000
-    from sim.validate.validator import VALIDATE_TOML
+    from sim.validate.config import VALIDATE_TOML
     assert t.attrs["config:validate.toml"] == VALIDATE_TOML.read_text()   # provenance
     again = augment_session(CAN_SESSION, tmp_path, opts)
     assert again[0].skipped and again[0].passed == s.passed
     # an interrupted run (no summary yet) is redone, never trusted
     (Path(s.dataset).parent / "summary.json").unlink()
     shutil.copy(s.dataset, tmp_path / "keep.h5")
-    redo = augment_session(CAN_SESSION, tmp_path, AugmentOptions(n=10, workers=2, gallery=0))
-    assert not redo[0].skipped
+    same = dataclasses.replace(opts, gallery=0)   # the same run key: only the summary is gone
+    redo = augment_session(CAN_SESSION, tmp_path, same)
+    assert not redo[0].skipped and redo[0].run_key == s.run_key
+    assert redo[0].passed == s.passed and (Path(s.dataset).parent / "summary.json").is_file()
 
 
 def test_run_key_follows_every_input(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -217,7 +220,7 @@ def test_watch_mode_augments_finished_sessions_only(tmp_path: Path) -> None:
 def test_rerecord_gives_a_raw_session_state_contacts_and_its_marks(tmp_path: Path) -> None:
     """`dexaug rerecord`: every /hands frame of a raw-input session goes through the bridge
     (one state and one contact record each, deterministic mode) and its grasp_mark comes back."""
-    from teleop.record.rerecord import rerecord
+    from teleop.bridge.rerecord import rerecord
     from teleop.record.session import open_session
 
     src = open_session(RAW_SESSION)

@@ -21,9 +21,10 @@ import pytest
 from mcap.reader import make_reader
 
 from teleop.messages import NUM_JOINTS, HandFrame, HandState, encode
-from teleop.record import schemas
+from teleop.record import foxglove, schemas
+from teleop.record.contact_record import ContactRecord
+from teleop.record.foxglove import FrameTransform
 from teleop.record.recorder import SessionRecorder
-from teleop.record.schemas import ContactRecord, FrameTransform
 from teleop.record.session import SessionError, open_session, repair_session
 
 REPO = Path(__file__).resolve().parents[1]
@@ -83,10 +84,10 @@ def _record(path: Path, n: int, *, rng: np.random.Generator, **kwargs) -> dict:
             rec.write_contacts(contacts, log_time_ns=t)
             rec.write_tf([FrameTransform("palm", "rh_ffdistal", [0.0, 0.0, 0.1],
                                          [1.0, 0.0, 0.0, 0.0])], t)
-            rec.write_markers(schemas.scene_update([
-                schemas.scene_entity("object", t, models=[schemas.model(
+            rec.write_markers(foxglove.scene_update([
+                foxglove.scene_entity("object", t, models=[foxglove.model(
                     "file:///assets/mug.obj", [0.5, 0.0, 0.8], [1.0, 0.0, 0.0, 0.0])]),
-                schemas.hand_skeleton_entity(frame.left, t, entity_id="operator_left")]), t)
+                foxglove.hand_skeleton_entity(frame.left, t, entity_id="operator_left")]), t)
             jpeg = b"\xff\xd8" + rng.bytes(64) + b"\xff\xd9"
             rec.write_view(jpeg, t)
             if i == n // 2:
@@ -143,7 +144,7 @@ def test_round_trip_all_channels(tmp_path: Path) -> None:
 
     views = [m.payload for m in s.messages("/view")]
     assert [base64.b64decode(v["data"]) for v in views] == w["jpegs"]
-    assert views[0]["format"] == "jpeg" and views[0]["timestamp"] == schemas.time_dict(
+    assert views[0]["format"] == "jpeg" and views[0]["timestamp"] == foxglove.time_dict(
         T0_NS + DT_NS)
 
     tf = [m.payload for m in s.messages("/tf")]

@@ -1,4 +1,4 @@
-"""Retargeting the real Quest 3 capture onto the Shadow Hand with mink (teleop.retarget.retargeter).
+"""Retargeting the real Quest 3 capture onto the Shadow Hand with mink (teleop.retarget).
 
 Everything runs the real solver (mink + daqp) on the real recording in
 ``../shared/assets/handdata``; the module skips where the assets are absent.
@@ -14,19 +14,20 @@ import numpy as np
 import pytest
 
 from sim.errors import ConfigError
+from sim.hand.config import hand_dir, hand_names
 from sim.paths import SHARED_ASSETS
 from sim.transforms import pose_mul, quat_angle
-from teleop.input.webxr import iwer_hand_frames, load_iwer_capture
+from teleop.input.iwer import iwer_hand_frames, load_iwer_capture
 from teleop.messages import JOINT_INDEX, HandFrame, HandState
-from teleop.retarget.retargeter import (
-    HOLD_REASONS,
+from teleop.retarget.config import (
     TELEOP_CONFIG,
-    Retargeter,
-    RetargetError,
+    hand_mapping_path,
+    load_hand_mapping,
     load_retarget_config,
-    retarget_frames,
-    summarise_errors,
 )
+from teleop.retarget.result import HOLD_REASONS
+from teleop.retarget.retargeter import Retargeter, RetargetError
+from teleop.retarget.trace import retarget_frames, summarise_errors
 
 CAPTURE = SHARED_ASSETS / "handdata" / "quest3_webxr" / "cap.min.js"
 # the `shadow` fixture (conftest) skips where the Menagerie models are absent
@@ -175,10 +176,11 @@ def test_vanished_hand_holds_last_output(shadow, config, frames):
 # --- configuration errors -----------------------------------------------------------------------
 
 
-def _bad_config(tmp_path: Path, old: str, new: str) -> Path:
-    path = tmp_path / "configs" / "teleop.toml"
+def _bad_copy(tmp_path: Path, src: Path, old: str, new: str) -> Path:
+    """A copy of config file ``src`` (under ``<tmp>/<its folder>/``) with ``old`` → ``new``."""
+    path = tmp_path / src.parent.name / src.name
     path.parent.mkdir()
-    shutil.copy(TELEOP_CONFIG, path)
+    shutil.copy(src, path)
     text = path.read_text()
     assert old in text
     path.write_text(text.replace(old, new, 1))
@@ -189,20 +191,40 @@ def _bad_config(tmp_path: Path, old: str, new: str) -> Path:
     ("iterations = 1", 'iterations = "one"', "retarget.iterations"),
     ("iterations = 1", "iteratons = 1", "retarget: unknown key(s) ['iteratons']"),
     ('solver = "daqp"', 'solver = "nosuchsolver"', "retarget.solver"),
-    ('thumb = "thumb_tip"', 'thumb = "thumb_nail"', "retarget.hands.shadow_right.fingers.thumb"),
     ("filter_time_constant_s = 0.015", "filter_time_constant_s = -1",
      "retarget.filter_time_constant_s"),
 ])
 def test_config_errors_name_file_and_key(tmp_path, old, new, key):
-    path = _bad_config(tmp_path, old, new)
+    path = _bad_copy(tmp_path, TELEOP_CONFIG, old, new)
     with pytest.raises(ConfigError) as exc:
         load_retarget_config(path)
     assert "configs/teleop.toml" in str(exc.value) and key in str(exc.value)
 
 
+@pytest.mark.parametrize(("old", "new", "key"), [
+    ('thumb = "thumb_tip"', 'thumb = "thumb_nail"', "fingers.thumb"),
+    ('side = "right"', 'side = "up"', "side"),
+    ('scale_finger = "middle"', 'scale_finger = "palm"', "scale_finger"),
+    ("wrist_pos_m = ", "wrist_position_m = ", "unknown key(s) ['wrist_position_m']"),
+])
+def test_hand_mapping_errors_name_file_and_key(tmp_path, shadow, old, new, key):
+    path = _bad_copy(tmp_path, hand_mapping_path(shadow.name), old, new)
+    with pytest.raises(ConfigError) as exc:
+        load_hand_mapping(shadow.name, path)
+    assert f"{shadow.name}/retarget.toml: {key}" in str(exc.value)
+
+
+def test_mapping_comes_from_the_hand_folder(shadow, config):
+    mapping = config.hand(shadow.name)
+    assert mapping.file == hand_mapping_path(shadow.name) == hand_dir(shadow.name) / "retarget.toml"
+    assert mapping.hand == shadow.name and set(mapping.fingers) <= set(shadow.finger_names)
+
+
 def test_unmapped_hand_and_finger(tmp_path, shadow, config):
-    with pytest.raises(ConfigError, match=r"teleop\.toml: retarget\.hands\.allegro_right"):
-        config.hand("allegro_right")
-    path = _bad_config(tmp_path, "little = ", "pinky = ")
-    with pytest.raises(ConfigError, match=r"retarget\.hands\.shadow_right\.fingers.*pinky"):
-        Retargeter(shadow, load_retarget_config(path))
+    unmapped = next((h for h in hand_names() if not hand_mapping_path(h).is_file()), "no_such_hand")
+    with pytest.raises(ConfigError, match=rf"hands/{unmapped}/retarget\.toml: missing file"):
+        config.hand(unmapped)
+    path = _bad_copy(tmp_path, hand_mapping_path(shadow.name), "little = ", "pinky = ")
+    bad = dataclasses.replace(config, hands={shadow.name: load_hand_mapping(shadow.name, path)})
+    with pytest.raises(ConfigError, match=r"retarget\.toml: fingers: unknown finger.*pinky"):
+        Retargeter(shadow, bad)

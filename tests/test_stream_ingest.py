@@ -14,7 +14,6 @@ import pytest
 from sim import transforms
 from sim.paths import SHARED_ASSETS
 from teleop import keys
-from teleop.input import frames
 from teleop.input.stream_ingest import HTS_TO_WEBXR, HtsParser, StreamIngest
 from teleop.input.webxr import from_webxr_joints
 from teleop.messages import JOINT_INDEX, MessageError, decode
@@ -28,7 +27,7 @@ def _hts_packet(side: str, pos_xr: np.ndarray, quat_xyzw: np.ndarray) -> str:
     wrist pose in Unity's world (z mirrored), landmarks in the wrist frame, F4/F3 decimals."""
     p_w, q_w = pos_xr[0] * [1, 1, -1], quat_xyzw[0]
     q_u = np.array([-q_w[0], -q_w[1], q_w[2], q_w[3]])
-    q_u_wxyz = frames.quat_xyzw_to_wxyz(q_u / np.linalg.norm(q_u))
+    q_u_wxyz = transforms.quat_xyzw_to_wxyz(q_u / np.linalg.norm(q_u))
     world_u = pos_xr[list(HTS_TO_WEBXR)] * [1, 1, -1]
     local = transforms.rotate(transforms.quat_conj(q_u_wxyz), world_u - p_w)
     name = side.capitalize()

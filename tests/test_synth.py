@@ -1,4 +1,4 @@
-"""The synthetic operator (teleop.synthetic.synth): a human hand model, a grasp episode, a sensor model.
+"""The synthetic operator (teleop.synthetic): a human hand model, a grasp episode, a sensor model.
 
 The central check retargets a synthetic episode with the real Retargeter (mink + daqp) and
 measures where the robot fingertips and palm land relative to the object: the episode is only
@@ -17,16 +17,12 @@ import pytest
 from sim.errors import ConfigError
 from sim.transforms import quat_to_mat
 from teleop.messages import JOINT_INDEX, OPENXR_JOINTS, decode, encode, validate
-from teleop.synthetic.synth import (
-    HandPose,
-    HumanHand,
-    SynthConfig,
-    dropout_mask,
-    load_synth_config,
-    surface_distance_m,
-    synthesize,
-    write_session,
-)
+from teleop.synthetic.config import SynthConfig, load_synth_config
+from teleop.synthetic.human_hand import HandPose, HumanHand
+from teleop.synthetic.sensor import dropout_mask
+from teleop.synthetic.surface import surface_distance_m
+from teleop.synthetic.synthesize import synthesize
+from teleop.synthetic.writer import write_session
 from tests.conftest import needs_menagerie, needs_ycb
 
 CAN = "005_tomato_soup_can"

@@ -15,7 +15,9 @@ from sim.grasp import Grasp
 from sim.hand.model import Hand
 from sim.hand.reference_grasps import load_reference_grasps
 from sim.transforms import rotate
-from sim.validate.validator import Failure, ValidateConfig, Validator
+from sim.validate.config import ValidateConfig
+from sim.validate.result import Failure
+from sim.validate.validator import Validator
 from sim.world.objects import load_object
 from tests.conftest import needs_menagerie, needs_ycb
 

@@ -80,13 +80,14 @@ def _wait(page, expr: str, timeout_s: float, what: str) -> None:
 
 @pytest.fixture(scope="module")
 def capture_frames():
-    from teleop.input.webxr import iwer_hand_frames, load_iwer_capture
+    from teleop.input.iwer import iwer_hand_frames, load_iwer_capture
     return {f.seq: f for f in iwer_hand_frames(load_iwer_capture(CAPTURE))}
 
 
 def test_quest3_replay_reaches_the_bridge_and_the_view_comes_back(chromium, capture_frames,
                                                                    shadow, caplog):
-    from teleop.bridge.bridge import Bridge, load_bridge_config
+    from teleop.bridge.bridge import Bridge
+    from teleop.bridge.config import load_bridge_config
     caplog.set_level(logging.INFO, logger="teleop.input.web_ingest")
     t_start = time.perf_counter()
     rig = "webq3"

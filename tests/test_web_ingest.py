@@ -14,14 +14,9 @@ import pytest
 from aiohttp import ClientSession, WSMsgType
 
 from teleop import keys
-from teleop.input.web_ingest import (
-    WS_HEADER_SIZE,
-    WebIngest,
-    WebIngestConfig,
-    ensure_certificate,
-    pack_ws_frame,
-    parse_ws_frame,
-)
+from teleop.input.tls import ensure_certificate
+from teleop.input.web_ingest import WebIngest, WebIngestConfig
+from teleop.input.web_protocol import WS_HEADER_SIZE, pack_ws_frame, parse_ws_frame
 from teleop.input.webxr import hand_frame_from_webxr
 from teleop.messages import MessageError, decode
 

@@ -1,4 +1,4 @@
-"""AutoWS workspace clouds (augment.autows.workspace, augment.autows.fingertip): exactness
+"""AutoWS workspace clouds (augment.autows): exactness
 against MuJoCo's own kinematics for every hand, contact faces on the pulp, demo-centred clouds,
 bad input, the disk cache and the rendering."""
 
@@ -15,6 +15,8 @@ import pytest
 import trimesh
 
 from augment.autows import fingertip as fingertip_mod
+from augment.autows.build import build_workspace
+from augment.autows.cloud import FACE_KINDS, WorkspaceCloud, summarise
 from augment.autows.fingertip import (
     FingertipParams,
     TipMesh,
@@ -22,20 +24,11 @@ from augment.autows.fingertip import (
     hand_fingertip_faces,
     tip_mesh,
 )
-from augment.autows.workspace import (
-    FACE_KINDS,
-    AutoWSParams,
-    DemoSeed,
-    WorkspaceCloud,
-    WorkspaceError,
-    build_workspace,
-    free_camera_projection,
-    joint_grids,
-    load_autows_params,
-    render_workspace_png,
-    summarise,
-)
-from augment.geometry.contact_face import ContactFaceError
+from augment.autows.grids import joint_grids
+from augment.autows.params import AutoWSParams, WorkspaceError, load_autows_params
+from augment.autows.render import free_camera_projection, render_workspace_png
+from augment.autows.seed import DemoSeed
+from augment.geometry.face import ContactFaceError
 from sim.errors import ConfigError
 from sim.hand.model import Hand
 from sim.transforms import pose_mul, quat_to_mat
@@ -393,7 +386,7 @@ def test_cache_hits_and_keys(hands: dict[str, Hand], params: AutoWSParams, _tmp_
     assert not first.from_cache
     files = list((_tmp_cache / "workspace").glob("*.npz"))
     assert len(files) == 1
-    with caplog.at_level(logging.INFO, logger="augment.autows.workspace"):
+    with caplog.at_level(logging.INFO, logger="augment.autows.build"):
         second = build_workspace(hand, params, fingers=["forefinger", "middle"])
     assert second.from_cache and "loaded from cache" in caplog.text
     assert second.provenance["key"] == first.provenance["key"]
@@ -416,7 +409,7 @@ def test_cache_hits_and_keys(hands: dict[str, Hand], params: AutoWSParams, _tmp_
     # a damaged cache file is rebuilt, not trusted
     for f in (_tmp_cache / "workspace").glob("*.npz"):
         f.write_bytes(b"garbage")
-    with caplog.at_level(logging.WARNING, logger="augment.autows.workspace"):
+    with caplog.at_level(logging.WARNING, logger="augment.autows.build"):
         again = build_workspace(hand, params, fingers=["forefinger", "middle"])
     assert not again.from_cache and "damaged" in caplog.text
 

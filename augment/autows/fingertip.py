@@ -3,9 +3,9 @@ body frame.
 
 A finger's contact faces depend only on the fingertip mesh, the finger's ``v_f``/``v_u`` and the
 query point (a demo's contact centroid, or none), never on the joint angles, so they are computed
-once per finger here and then carried through forward kinematics by :mod:`augment.autows.workspace`.
+once per finger here and then carried through forward kinematics by :mod:`augment.autows.build`.
 
-Steps (each implemented in :mod:`augment.geometry.sampling` / :mod:`augment.geometry.contact_face`):
+Steps (implemented in :mod:`augment.geometry` — ``sampling``, ``pulp``, ``contact_face``):
 
 1. :func:`tip_mesh` — the fingertip mesh of the hand model in the tip *body* frame. MuJoCo
    re-centres and re-orients meshes on compile (``mesh_vert`` is in the mesh's inertial frame);
@@ -30,17 +30,9 @@ import mujoco
 import numpy as np
 from numpy.typing import ArrayLike
 
-from augment.geometry.contact_face import (
-    DEFAULT_DEPTH_M,
-    DEFAULT_NORMAL_DOT,
-    CentreMode,
-    ContactFace,
-    ContactFaceError,
-    ShapeKind,
-    contact_face,
-    extra_faces,
-    visible_pulp_cloud,
-)
+from augment.geometry.contact_face import DEFAULT_DEPTH_M, DEFAULT_NORMAL_DOT, contact_face, extra_faces
+from augment.geometry.face import CentreMode, ContactFace, ContactFaceError, ShapeKind
+from augment.geometry.pulp import visible_pulp_cloud
 from augment.geometry.sampling import poisson_disk_sample
 from augment.geometry.visibility import DEFAULT_RADIUS_FACTOR
 from sim.errors import ConfigError

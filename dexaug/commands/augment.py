@@ -19,9 +19,9 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from rich.table import Table
 
 if TYPE_CHECKING:
-    from dexaug.pipeline.options import AugmentOptions
     from dexaug.pipeline.summary import DemoSummary
 
+from dexaug.commands.options import augment_options, generation_args, hand_arg
 from dexaug.commands.registry import command
 
 log = logging.getLogger(__name__)
@@ -44,22 +44,8 @@ def stage_ticker(bar: Progress) -> Callable[[str, int, int], None]:
     return tick
 
 
-def _generation_args(p: argparse.ArgumentParser) -> None:
-    """Options shared by ``generate`` and ``augment``."""
-    p.add_argument("--n", type=int, default=200, help="grasps wanted per demo / object")
-    p.add_argument("--validate", choices=("lift-drop", "six-dir", "none"), default="lift-drop",
-                   help="simulated validation of every grasp (default lift-drop)")
-    p.add_argument("--table", action="store_true", help="object on a table: keep the palm and "
-                   "fingertips above it")
-    p.add_argument("--no-linkpen", action="store_true", help="skip the link penetration check")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
-    p.add_argument("--budget", type=float, default=120.0, metavar="SECONDS",
-                   help="FSG time budget: the search stops there and reports the shortfall")
-
-
 def _generate_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--hand", default="shadow_right", help="hand config name (configs/hands)")
+    hand_arg(p)
     p.add_argument("--object", required=True, help="object name (YCB id/name or primitive)")
     p.add_argument("--demo", help="centre the workspace on a demonstration: a demo .json, a "
                    "session .mcap, or a reference grasp name")
@@ -69,7 +55,7 @@ def _generate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-finiter", action="store_true", help="no finger iteration")
     p.add_argument("--out", type=Path, default=Path("grasps.h5"), help="HDF5 dataset to write "
                    "(appended when it exists)")
-    _generation_args(p)
+    generation_args(p)
 
 
 @command("generate", _generate_args)
@@ -83,7 +69,8 @@ def generate_cmd(args: argparse.Namespace, console: Console) -> int:
     --budget) is reported, never a hang.
     """
     from augment import dataset
-    from augment.autows.workspace import DemoSeed, build_workspace
+    from augment.autows.build import build_workspace
+    from augment.autows.seed import DemoSeed
     from augment.object_cloud import object_cloud
     from dexaug.pipeline.demos import resolve_demo
     from dexaug.pipeline.run import demo_fingers, generate_grasps
@@ -143,17 +130,7 @@ def _augment_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--poll", type=float, default=2.0, help="--watch: seconds between scans")
     p.add_argument("--force", action="store_true", help="redo demos that are already finished")
     p.add_argument("--gallery", type=int, default=6, help="grasps rendered in each report")
-    _generation_args(p)
-
-
-def _augment_options(args: argparse.Namespace) -> AugmentOptions:
-    from dexaug.pipeline.options import AugmentOptions
-    from sim.validate.batch import default_workers
-
-    return AugmentOptions(n=args.n, validate=None if args.validate == "none" else args.validate,
-                          link_penetration=not args.no_linkpen, table=args.table,
-                          seed=args.seed, workers=args.workers or default_workers(),
-                          time_budget_s=args.budget, gallery=args.gallery)
+    generation_args(p)
 
 
 @command("augment", _augment_args)
@@ -174,7 +151,7 @@ def augment_cmd(args: argparse.Namespace, console: Console) -> int:
     if not args.inputs and not args.watch:
         console.print("[red]error:[/] give sessions to augment or --watch DIR")
         return 2
-    opts = _augment_options(args)
+    opts = augment_options(args)
     failed = 0
     rows = []
     with progress_bars(console) as bar:
@@ -269,7 +246,7 @@ def rerecord_cmd(args: argparse.Namespace, console: Console) -> int:
     physics steps), so a raw-input session (a synthetic operator's, an older recording) gains
     simulated state and contacts; grasp marks are re-issued at the same frames.
     """
-    from teleop.record.rerecord import rerecord
+    from teleop.bridge.rerecord import rerecord
 
     out = rerecord(args.src, args.out, hand=args.hand, object_name=args.object)
     console.print(f"wrote {out}")

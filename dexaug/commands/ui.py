@@ -14,7 +14,7 @@ from pathlib import Path
 
 from rich.console import Console
 
-from dexaug.commands.augment import _augment_options, _generation_args
+from dexaug.commands.options import augment_options, generation_args
 from dexaug.commands.registry import command
 
 log = logging.getLogger(__name__)
@@ -29,7 +29,7 @@ def _ui_args(p: argparse.ArgumentParser) -> None:
                    "this machine only)")
     p.add_argument("--port", type=int, default=8765, help="listen port (default 8765)")
     p.add_argument("--gallery", type=int, default=6, help="grasps rendered in each report")
-    _generation_args(p)
+    generation_args(p)
     p.set_defaults(n=100)
 
 
@@ -42,10 +42,10 @@ def ui_cmd(args: argparse.Namespace, console: Console) -> int:
     the background (one at a time), shows the progress, then the numbers and the report.
     Demos already augmented with the same inputs show their results directly. Ctrl-C stops.
     """
-    from dexaug.dashboard import Dashboard, DashboardConfig
+    from dexaug.dashboard.server import Dashboard, DashboardConfig
 
     cfg = DashboardConfig(sessions_dir=args.sessions, out_root=args.out,
-                          options=_augment_options(args), host=args.host, port=args.port)
+                          options=augment_options(args), host=args.host, port=args.port)
     with Dashboard(cfg) as dash:
         url = dash.start()
         console.print(f"dashboard on [bold]{url}[/] (Ctrl-C to stop)")

@@ -5,7 +5,3 @@ one-click augmentation per demo (live progress, then the report and its numbers)
 :mod:`~dexaug.dashboard.jobs` runs one augmentation at a time on a worker thread;
 :mod:`~dexaug.dashboard.server` serves the page (``static/``) and its JSON API.
 """
-
-from dexaug.dashboard.server import Dashboard, DashboardConfig, DashboardError
-
-__all__ = ["Dashboard", "DashboardConfig", "DashboardError"]

@@ -13,11 +13,11 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from augment.fsg.sampler import AUGMENT_TOML
+from augment.autows.params import AUGMENT_TOML
 from sim.demo import Demo, demo_to_json
 from sim.hand.config import hand_config_path
 from sim.validate.batch import default_workers
-from sim.validate.validator import VALIDATE_TOML
+from sim.validate.config import VALIDATE_TOML
 
 __all__ = ["RESULT_CONFIGS", "AugmentOptions", "Progress", "demo_dir", "result_configs", "run_key"]
 

@@ -28,8 +28,11 @@ from typing import Any
 import numpy as np
 
 from augment import dataset
-from augment.autows.workspace import DemoSeed, WorkspaceCloud, build_workspace
-from augment.fsg.sampler import FsgResult, generate
+from augment.autows.build import build_workspace
+from augment.autows.cloud import WorkspaceCloud
+from augment.autows.seed import DemoSeed
+from augment.fsg.result import FsgResult
+from augment.fsg.run import generate
 from augment.object_cloud import ObjectCloud, object_cloud
 from dexaug.pipeline.options import AugmentOptions, Progress, demo_dir, result_configs, run_key
 from dexaug.pipeline.report import write_report
@@ -47,12 +50,12 @@ __all__ = ["augment_demo", "augment_session", "demo_fingers", "generate_grasps"]
 log = logging.getLogger(__name__)
 
 #: modules the shared worker pool preloads: FSG's sampler and the validator it checks with
-POOL_PRELOAD = ("augment.fsg.sampler", "sim.validate.batch")
+POOL_PRELOAD = ("augment.fsg.run", "sim.validate.batch")
 
 
 def generate_grasps(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: WorkspaceCloud, *,
                     link_penetration: bool = True, workers: int = 1, **kwargs: Any) -> FsgResult:
-    """FSG (:func:`augment.fsg.sampler.generate`) wired to this project's validator: with
+    """FSG (:func:`augment.fsg.run.generate`) wired to this project's validator: with
     ``link_penetration``, the point-cloud checks end with the exact check in the validator's
     scene, so no output fails validation for a penetration the simulator sees. Every caller
     above ``augment`` (CLI, dashboard, benchmarks) generates through here."""

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import logging
 
-from augment.autows.workspace import build_workspace
+from augment.autows.build import build_workspace
 from augment.object_cloud import object_cloud
 from dexaug.pipeline.run import generate_grasps
 from sim.grasp import Grasp

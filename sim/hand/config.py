@@ -18,6 +18,7 @@ from sim.errors import ConfigError
 from sim.paths import CONFIG_DIR
 
 HANDS_DIR = CONFIG_DIR / "hands"
+DEFAULT_HAND_FILE = HANDS_DIR / "default.toml"
 POSTURES = ("open_pose", "preshape_pose", "close_pose")
 
 
@@ -148,6 +149,19 @@ def hand_dir(name: str) -> Path:
 def hand_names() -> list[str]:
     """Every hand with a folder under ``configs/hands/`` (sorted)."""
     return sorted(p.parent.name for p in HANDS_DIR.glob("*/hand.toml"))
+
+
+def default_hand_name() -> str:
+    """The hand used wherever none is named: ``hand = "<name>"`` in ``configs/hands/default.toml``,
+    checked against the hand folders (the one place a hand's name is chosen for the code)."""
+    root = load_toml(DEFAULT_HAND_FILE)
+    root.reject_unknown({"hand"})
+    name = root.str("hand")
+    known = hand_names()
+    if name not in known:
+        raise root.error("hand", f"no hand folder {hand_dir(name)} with a hand.toml; known hands: "
+                         f"{known}")
+    return name
 
 
 def hand_config_path(name_or_path: str | Path) -> Path:

@@ -18,7 +18,9 @@ from sim.errors import DexaugError
 from sim.grasp import Grasp
 from sim.hand.model import Hand
 from sim.pools import persistent_pool
-from sim.validate.validator import ValidateConfig, ValidationResult, Validator
+from sim.validate.config import ValidateConfig
+from sim.validate.result import ValidationResult
+from sim.validate.validator import Validator
 from sim.world.objects import load_object
 
 _VALIDATORS: dict[tuple[str, str, str | None], Validator] = {}

@@ -2,7 +2,7 @@
 
 They let every part of dexaug (scene, validator, augmenter, tests, demos) run on a machine
 without the YCB set, and they give shapes with known dimensions for checks. Each primitive is a
-``mujoco.MjSpec`` with the same layout as a loaded YCB object (see ``sim.world.objects``): one body
+``mujoco.MjSpec`` with the same layout as a loaded YCB object (see ``sim.world.object_spec``): one body
 ``object`` with a free joint ``object_free`` at the object frame, collision geoms (group 3,
 contype = conaffinity = 1, real masses) and visual geoms (group 2, no collisions, no mass).
 Contact parameters are left at MuJoCo's defaults here; ``ObjectAsset.spec`` sets them.

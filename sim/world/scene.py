@@ -15,7 +15,8 @@ import mujoco
 import numpy as np
 
 from sim.hand.model import Hand
-from sim.world.objects import ContactParams, ObjectAsset
+from sim.world.object_spec import ContactParams
+from sim.world.objects import ObjectAsset
 
 HAND_PREFIX = "hand/"
 OBJECT_PREFIX = "obj/"

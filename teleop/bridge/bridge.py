@@ -17,13 +17,19 @@ dropped and counted rather than letting the loop spiral). In ``deterministic`` m
 offline reprocessing) every received frame is queued and processed in order with exactly
 ``steps_per_frame`` physics steps, so the same input gives the same trajectory bit for bit.
 
+Recording (``start_recording``): raw ``/hands`` as received, and per published state the
+``/state`` and ``/contacts`` of the step — both with the step's simulated time ``t_s``, the
+``seq`` of the frame answered and one log time — and the ``/events`` with the simulated time
+they happen at, so demo extraction can pair and time them on the simulation's own clock.
+
 Output: ``/state`` JSON (``seq`` of the frame answered — latency measurements match on it —,
 sim time, simulated and retargeted qpos, palm and object poses, hand–object contacts) at most
 ``state_rate_hz`` and on every new frame; ``/view`` JPEG from a head-following camera
-(:mod:`teleop.bridge.view`) at ``view_rate_hz`` when GL works, rendered in its own thread from a copy of
-the data; ``/events`` JSON. Control: queryable ``dexaug/<rig>/control/**`` (``start_recording``,
-``stop_recording``, ``choose_object``, ``reset_object``, ``mark_grasp``, ``status``), JSON in,
-JSON out (``{"ok": false, "error": ...}`` on failure).
+(:mod:`teleop.bridge.view`) at ``view_rate_hz`` when GL works, rendered in its own thread from
+a copy of the data (:mod:`teleop.bridge.view_stream`); ``/events`` JSON. Control: queryable
+``dexaug/<rig>/control/**`` (``start_recording``, ``stop_recording``, ``choose_object``,
+``reset_object``, ``mark_grasp``, ``status``), JSON in, JSON out (``{"ok": false, "error":
+...}`` on failure): :mod:`teleop.bridge.control`.
 
 World layout: the scene's table top is z = 0; the operator's tracking space (local-floor, z up)
 is shifted by ``world_offset_m`` (default 0.8 m down: a table top at a standing operator's
@@ -38,13 +44,11 @@ import contextlib
 import json
 import logging
 import math
-import queue
 import struct
 import threading
 import time
 from collections import Counter, deque
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -52,106 +56,30 @@ import mujoco
 import numpy as np
 import zenoh
 
-from sim.config import Section, load_toml
 from sim.hand.model import Hand
 from sim.world.objects import load_object
 from sim.world.scene import PhysicsOptions, Scene
 from teleop import keys as zkeys
+from teleop.bridge.config import BridgeConfig, load_bridge_config
+from teleop.bridge.control import BridgeControl
 from teleop.bridge.scene_contacts import contact_records, tip_finger_bodies
+from teleop.bridge.view_stream import ViewStream, gl_backend, head_pose
 from teleop.messages import MAGIC, SCHEMA_VERSION, HandFrame, MessageError, decode
+from teleop.record.contact_record import ContactRecord
 from teleop.record.recorder import SessionRecorder
-from teleop.record.schemas import ContactRecord, finite_list
-from teleop.retarget.retargeter import TELEOP_CONFIG, Retargeter, load_retarget_config
+from teleop.record.schemas import finite_list
+from teleop.retarget.config import load_retarget_config
+from teleop.retarget.retargeter import Retargeter
+
+__all__ = ["Bridge"]
 
 logger = logging.getLogger(__name__)
 Array = np.ndarray
 
-_BRIDGE_KEYS = {"state_rate_hz", "view_enabled", "view_rate_hz", "view_max_duty", "view_width",
-                "view_height",
-                "jpeg_quality", "world_offset_m", "object", "object_pos_m", "object_yaw_deg",
-                "table", "timestep_s", "max_catchup_steps", "steps_per_frame", "recordings_dir",
-                "deterministic"}
 _WARN_EVERY = 100  # after the first few, log one bad-input warning per this many
 
 
-@dataclass
-class BridgeConfig:
-    """``configs/teleop.toml`` ``[bridge]``; see the file for what each key does."""
-
-    file: Path | None = None
-    state_rate_hz: float = 120.0
-    view_enabled: bool = True
-    view_rate_hz: float = 30.0
-    view_max_duty: float = 0.25
-    view_width: int = 320
-    view_height: int = 240
-    jpeg_quality: int = 80
-    world_offset_m: Array = field(default_factory=lambda: np.array([0.0, 0.0, -0.8]))
-    object: str = "box"
-    object_pos_m: Array = field(default_factory=lambda: np.array([0.35, 0.0]))
-    object_yaw_deg: float = 0.0
-    table: bool = True
-    timestep_s: float = 0.004
-    max_catchup_steps: int = 25
-    steps_per_frame: int = 3
-    recordings_dir: Path = Path("recordings")
-    deterministic: bool = False
-
-
-def load_bridge_config(path: Path | str | None = None) -> BridgeConfig:
-    """Read ``[bridge]`` of ``configs/teleop.toml`` (or ``path``); a missing table gives the
-    defaults. Unknown keys are refused; errors are ConfigError naming the file and key."""
-    path = Path(path) if path is not None else TELEOP_CONFIG
-    root = load_toml(path)
-    sec: Section = root.section("bridge", {})
-    sec.reject_unknown(_BRIDGE_KEYS)
-    d = BridgeConfig()
-    rec_dir = Path(sec.str("recordings_dir", str(d.recordings_dir)))
-    if not rec_dir.is_absolute():
-        rec_dir = path.parent.parent / rec_dir  # relative to the repository root
-    return BridgeConfig(
-        file=path,
-        state_rate_hz=sec.float("state_rate_hz", d.state_rate_hz, min=1e-3),
-        view_enabled=sec.bool("view_enabled", d.view_enabled),
-        view_rate_hz=sec.float("view_rate_hz", d.view_rate_hz, min=1e-3),
-        view_max_duty=sec.float("view_max_duty", d.view_max_duty, min=0.01, max=1.0),
-        view_width=sec.int("view_width", d.view_width, min=16),
-        view_height=sec.int("view_height", d.view_height, min=16),
-        jpeg_quality=sec.int("jpeg_quality", d.jpeg_quality, min=1),
-        world_offset_m=np.array(sec.floats("world_offset_m", 3, list(d.world_offset_m))),
-        object=sec.str("object", d.object),
-        object_pos_m=np.array(sec.floats("object_pos_m", 2, list(d.object_pos_m))),
-        object_yaw_deg=sec.float("object_yaw_deg", d.object_yaw_deg),
-        table=sec.bool("table", d.table),
-        timestep_s=sec.float("timestep_s", d.timestep_s, min=1e-4, max=0.05),
-        max_catchup_steps=sec.int("max_catchup_steps", d.max_catchup_steps, min=1),
-        steps_per_frame=sec.int("steps_per_frame", d.steps_per_frame, min=0),
-        recordings_dir=rec_dir,
-        deterministic=sec.bool("deterministic", d.deterministic),
-    )
-
-
-_GL: dict[str, str | None] = {}
-
-
-def _gl_backend() -> str | None:
-    """The working GL backend, probed once per process (the probe costs a subprocess)."""
-    if "backend" not in _GL:
-        from sim.world.render import gl_available
-        _GL["backend"] = gl_available()
-    return _GL["backend"]
-
-
-class _Pending:
-    """A control command waiting for the loop thread."""
-
-    def __init__(self, command: str, args: dict[str, Any]) -> None:
-        self.command, self.args = command, args
-        self.done = threading.Event()
-        self.result: dict[str, Any] = {}
-
-
-class Bridge:
+class Bridge(BridgeControl):
     """Hands in, simulated hand + object out; see the module docstring.
 
     ``session``: an open zenoh session to use (the caller closes it); without one the bridge
@@ -179,7 +107,7 @@ class Bridge:
         self._latest: tuple[HandFrame, float] | None = None
         self._queue: deque[tuple[HandFrame, float]] = deque()
         self._wake = threading.Event()
-        self._controls: queue.Queue[_Pending] = queue.Queue()
+        self._init_controls()
         self._recorder: SessionRecorder | None = None
         self._recording_path: Path | None = None
         self._last_frame: HandFrame | None = None
@@ -203,15 +131,9 @@ class Bridge:
         self._sub = self.session.declare_subscriber(self.keys.hands, self._on_hands)
         self._queryable = self.session.declare_queryable(self.keys.control, self._on_query)
 
-        self._view_lock = threading.Lock()
-        self._view_data: mujoco.MjData | None = None
-        self._view_head: tuple[Array, Array] | None = None
-        self._view_wake = threading.Event()
-        self._view_stop = threading.Event()
-        self._view_thread: threading.Thread | None = None
-        self.view_active = False
-        if self.config.view_enabled and _gl_backend() is not None:
-            self._start_view()
+        self._view = ViewStream(self.config, self._on_view)
+        if self.config.view_enabled and gl_backend() is not None:
+            self._view.start(self.scene.model)
         elif self.config.view_enabled:
             logger.warning("no OpenGL backend: the /view stream is off")
 
@@ -282,138 +204,17 @@ class Bridge:
                 self._latest = (frame, t_rx)
         self._wake.set()
 
-    def _on_query(self, query: zenoh.Query) -> None:
-        key = str(query.key_expr)
-        command = key.rsplit("/", 1)[-1]
-        try:
-            payload = query.payload
-            args = json.loads(payload.to_bytes() or b"{}") if payload is not None else {}
-            if not isinstance(args, dict):
-                raise ValueError("the payload must be a JSON object")
-            if command == "status":
-                result = self.status()
-            elif command not in zkeys.CONTROL_COMMANDS:
-                result = {"ok": False, "error": f"unknown command {command!r}; one of "
-                                                 f"{list(zkeys.CONTROL_COMMANDS)}"}
-            else:
-                result = self.control(command, args, timeout_s=10.0)
-        except Exception as exc:
-            result = {"ok": False, "error": f"{type(exc).__name__}: {exc}"}
-        query.reply(query.key_expr, json.dumps(result).encode())
-
-    # ------------------------------------------------------------------------------- control
-
-    def control(self, command: str, args: dict[str, Any] | None = None, *,
-                timeout_s: float = 10.0) -> dict[str, Any]:
-        """Run a control command in the loop thread (or here when no loop runs) and return its
-        JSON-able result."""
-        pending = _Pending(command, dict(args or {}))
-        if not self.loop_running:
-            self._execute(pending)
-            return pending.result
-        self._controls.put(pending)
-        self._wake.set()
-        if not pending.done.wait(timeout_s):
-            return {"ok": False, "error": f"{command}: the bridge loop did not answer in "
-                                          f"{timeout_s} s"}
-        return pending.result
-
-    def _drain_controls(self) -> None:
-        while True:
-            try:
-                pending = self._controls.get_nowait()
-            except queue.Empty:
-                return
-            self._execute(pending)
-
-    def _execute(self, p: _Pending) -> None:
-        try:
-            handler = getattr(self, f"_cmd_{p.command}")
-            p.result = {"ok": True, **handler(p.args)}
-        except Exception as exc:
-            logger.warning("control %s failed: %s", p.command, exc)
-            p.result = {"ok": False, "error": f"{type(exc).__name__}: {exc}"}
-        p.done.set()
-
-    def _event(self, event_type: str, payload: dict[str, Any] | None = None) -> None:
-        msg = {"type": event_type, "t_s": self.sim_time_s, **(payload or {})}
-        self._pub_events.put(json.dumps(msg).encode())
-        if self._recorder is not None:
-            self._recorder.write_event(event_type, payload)
-
-    def _cmd_start_recording(self, args: dict[str, Any]) -> dict[str, Any]:
-        if self._recorder is not None:
-            raise RuntimeError(f"already recording to {self._recording_path}")
-        path = Path(args["path"]) if "path" in args else (
-            self.config.recordings_dir / f"{self.keys.rig}_{time.strftime('%Y%m%d_%H%M%S')}"
-                                         f"_{time.time_ns() % 1_000_000:06d}.mcap")
-        path.parent.mkdir(parents=True, exist_ok=True)
-        meta = {"hand": self.hand.name, "object": self.object_name,
-                "joint_names": list(self.hand.joint_names),
-                "fingers": list(self.hand.finger_names), "rig": self.keys.rig,
-                "world_offset_m": list(map(float, self.config.world_offset_m)),
-                "deterministic": self.config.deterministic}
-        self._recorder = SessionRecorder(path, metadata=meta, overwrite=bool(args.get("overwrite")))
-        self._recording_path = path
-        logger.info("recording to %s", path)
-        return {"path": str(path)}
-
-    def _cmd_stop_recording(self, args: dict[str, Any]) -> dict[str, Any]:
-        rec, path = self._recorder, self._recording_path
-        if rec is None:
-            raise RuntimeError("not recording")
-        self._recorder = None
-        rec.close(reason=str(args.get("reason", "stop_recording")))
-        self._recording_path = None
-        if self._on_recording_closed is not None and path is not None:
-            try:
-                self._on_recording_closed(path)
-            except Exception:   # a hook must never take the bridge down
-                logger.exception("recording-closed hook failed for %s", path)
-        return {"path": str(path), "written": dict(rec.stats.written)}
-
-    def _cmd_choose_object(self, args: dict[str, Any]) -> dict[str, Any]:
-        name = str(args["object"])
-        was_view = self.view_active
-        if was_view:
-            self._stop_view()
-        self._build_scene(name)
-        self._t0_wall, self._steps_done = None, 0
-        if was_view:
-            self._start_view()
-        self._event("object_changed", {"object": name})
-        return {"object": name}
-
-    def _cmd_reset_object(self, args: dict[str, Any]) -> dict[str, Any]:
-        self.scene.set_object_pose(*self._object_home)
-        mujoco.mj_forward(self.scene.model, self.scene.data)
-        self._event("object_reset", {"object": self.object_name})
-        return {"object": self.object_name}
-
-    def _cmd_mark_grasp(self, args: dict[str, Any]) -> dict[str, Any]:
-        fingers = sorted({c.finger for c in self._last_contacts if c.finger})
-        payload = {"object": self.object_name, "seq": self._last_seq, "fingers": fingers,
-                   **{k: v for k, v in args.items() if k not in ("object", "seq")}}
-        self._event("grasp_mark", payload)
-        return {"fingers": fingers}
-
-    def status(self) -> dict[str, Any]:
-        """Counters and settings (answered from the zenoh thread: never waits for the loop)."""
-        with self._lock:
-            counts = dict(self.counts)
-        return {"ok": True, "rig": self.keys.rig, "hand": self.hand.name,
-                "object": self.object_name, "counts": counts,
-                "held": dict(self.retargeter.held_counts),
-                "recording": str(self._recording_path) if self._recording_path else None,
-                "last_seq": self._last_seq, "sim_time_s": self.sim_time_s,
-                "view": self.view_active, "loop_running": self.loop_running,
-                "deterministic": self.config.deterministic}
-
     # --------------------------------------------------------------------------------- loop
 
     @property
     def sim_time_s(self) -> float:
+        """Simulated time of the scene, seconds (restarts at 0 when the object changes)."""
         return float(self.scene.data.time)
+
+    @property
+    def view_active(self) -> bool:
+        """A ``/view`` renderer is up."""
+        return self._view.active
 
     def _take_frame(self) -> tuple[HandFrame, float] | None:
         with self._lock:
@@ -477,12 +278,14 @@ class Bridge:
         with self._lock:
             self.counts["states"] += 1
         rec = self._recorder
-        if rec is not None:
+        if rec is not None:  # one step, one clock: the same t_s, seq and log time on both
             extra = {"q_target": msg["q_target"], "held": held}
+            t_ns = time.time_ns()
             rec.write_state(qpos, palm_p, palm_q, obj_p, obj_q, t_s=self.sim_time_s,
                             seq=self._last_seq, tracked=not held, object_name=self.object_name,
-                            extra=extra)
-            rec.write_contacts(contacts, t_s=self.sim_time_s, object_name=self.object_name)
+                            extra=extra, log_time_ns=t_ns)
+            rec.write_contacts(contacts, t_s=self.sim_time_s, seq=self._last_seq,
+                               object_name=self.object_name, log_time_ns=t_ns)
 
     def step_once(self, now: float | None = None) -> bool:
         """One loop tick: pending controls, the newest frame (if any), physics up to ``now``
@@ -503,7 +306,8 @@ class Bridge:
             self._publish_state(item[1] if item else None)
         if self.view_active and now >= self._next_view_s:
             self._next_view_s = now + 1.0 / self.config.view_rate_hz
-            self._snapshot_view()
+            self._view.snapshot(self.scene.model, self.scene.data,
+                                head_pose(self._last_frame, self.config))
         return item is not None
 
     def run(self, duration_s: float | None = None,
@@ -567,7 +371,7 @@ class Bridge:
         self.stop()
         if self._recorder is not None:
             self._cmd_stop_recording({"reason": "bridge closed"})
-        self._stop_view()
+        self._view.stop()
         for ent in (self._sub, self._queryable, self._pub_state, self._pub_view, self._pub_events):
             with contextlib.suppress(Exception):  # already gone with the session
                 ent.undeclare()
@@ -580,99 +384,11 @@ class Bridge:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    # ---------------------------------------------------------------------------------- view
-
-    def _head_pose(self) -> tuple[Array, Array]:
-        f = self._last_frame
-        if f is None:
-            pos = np.array([*self.config.object_pos_m, 0.0]) + np.array([-0.45, 0.0, 0.45])
-            return pos, np.array([math.cos(math.radians(22.5)), 0.0,
-                                  math.sin(math.radians(22.5)), 0.0])
-        return np.asarray(f.head_position, float) + self.config.world_offset_m, \
-            np.asarray(f.head_orientation_wxyz, float)
-
-    def _snapshot_view(self) -> None:
-        with self._view_lock:
-            if self._view_data is None:
-                self._view_data = mujoco.MjData(self.scene.model)
-            mujoco.mj_copyData(self._view_data, self.scene.model, self.scene.data)
-            self._view_head = self._head_pose()
-        self._view_wake.set()
-
-    def _start_view(self) -> None:
-        self._view_stop.clear()
-        self._view_data = None
-        ready = threading.Event()
-        self._view_thread = threading.Thread(target=self._view_loop, args=(self.scene.model, ready),
-                                             name="dexaug-view", daemon=True)
-        self._view_thread.start()
-        ready.wait(10.0)
-
-    def _stop_view(self) -> None:
-        if self._view_thread is not None:
-            self._view_stop.set()
-            self._view_wake.set()
-            self._view_thread.join(10.0)
-            self._view_thread = None
-        self.view_active = False
-
-    def _view_loop(self, model: mujoco.MjModel, ready: threading.Event) -> None:
-        from teleop.bridge.view import HeadView
-        try:
-            view = HeadView(model, width=self.config.view_width, height=self.config.view_height,
-                            jpeg_quality=self.config.jpeg_quality)
-        except Exception as exc:
-            logger.warning("view renderer unavailable (%s): the /view stream is off", exc)
-            ready.set()
-            return
-        self.view_active = True
-        ready.set()
-        try:
-            while not self._view_stop.is_set():
-                if not self._view_wake.wait(0.1):
-                    continue
-                self._view_wake.clear()
-                with self._view_lock:
-                    if self._view_data is None or self._view_head is None:
-                        continue
-                    view.update(self._view_data, *self._view_head)
-                t_render = time.perf_counter()
-                jpeg = view.encode(view.renderer.render())
-                t_render = time.perf_counter() - t_render
-                self._pub_view.put(jpeg)
-                with self._lock:
-                    self.counts["views"] += 1
-                rec = self._recorder
-                if rec is not None:
-                    rec.write_view(jpeg)
-                # MuJoCo's renderer holds the GIL while it draws: with software GL (tens of
-                # ms a frame) an unthrottled view would stall the control loop, so the view
-                # may use at most view_max_duty of the time, whatever view_rate_hz asks
-                self._view_stop.wait(t_render * (1.0 / self.config.view_max_duty - 1.0))
-        finally:
-            view.close()
-            self.view_active = False
-
-
-def bridge_main(hand: str, obj: str | None = None, rig: str = "local", *,
-                config_path: Path | str | None = None, listen_port: int | None = 7447,
-                connect_ports: tuple[int, ...] = (), duration_s: float | None = None,
-                record: Path | str | None = None, view: bool | None = None,
-                on_recording_closed: Callable[[Path], None] | None = None) -> int:
-    """``dexaug bridge``: run a bridge until Ctrl-C (or ``duration_s``); ``record`` starts a
-    recording at that path right away; ``on_recording_closed(path)`` runs after each recording
-    is closed (e.g. to augment it). Returns a process exit code."""
-    cfg = load_bridge_config(config_path)
-    if view is not None:
-        cfg.view_enabled = view
-    with Bridge(hand, obj, rig, cfg, listen_port=listen_port, connect_ports=tuple(connect_ports),
-                on_recording_closed=on_recording_closed) as bridge:
-        if record is not None:
-            bridge.control("start_recording", {"path": str(record)})
-        logger.info("bridge %s: hands on %s, state on %s, control on %s", rig,
-                    bridge.keys.hands, bridge.keys.state, bridge.keys.control)
-        try:
-            bridge.run(duration_s=duration_s)
-        except KeyboardInterrupt:
-            logger.info("interrupted")
-    return 0
+    def _on_view(self, jpeg: bytes) -> None:
+        """A rendered view frame (render thread): publish, count, record."""
+        self._pub_view.put(jpeg)
+        with self._lock:
+            self.counts["views"] += 1
+        rec = self._recorder
+        if rec is not None:
+            rec.write_view(jpeg)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from sim.world.contacts import contacts_between
 from sim.world.scene import HAND_PREFIX, Scene
-from teleop.record.schemas import ContactRecord
+from teleop.record.contact_record import ContactRecord
 
 __all__ = ["contact_records", "tip_finger_bodies"]
 

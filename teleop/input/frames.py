@@ -25,6 +25,8 @@ out of the back of the hand (dorsal); local +Y completes the right-handed frame.
 Quaternion order is in every name: ``*_wxyz`` is scalar-first (MuJoCo, dexaug internals),
 ``*_xyzw`` scalar-last (OpenXR, WebXR, Foxglove, the wire format). Poses are pairs
 (position (...,3) metres, quaternion (...,4)); every function broadcasts over leading dims.
+Reordering a quaternion between the two orders is :func:`sim.transforms.quat_xyzw_to_wxyz` /
+:func:`sim.transforms.quat_wxyz_to_xyzw`.
 """
 
 from __future__ import annotations
@@ -32,6 +34,10 @@ from __future__ import annotations
 import numpy as np
 
 from sim import transforms
+
+__all__ = ["MUJOCO_TO_XR", "XR_TO_MUJOCO", "XR_TO_MUJOCO_QUAT_WXYZ", "mujoco_to_xr_positions",
+           "mujoco_to_xr_quat_xyzw", "quat_normalize_wxyz", "xr_to_mujoco_pose",
+           "xr_to_mujoco_positions", "xr_to_mujoco_quat_wxyz"]
 
 Array = np.ndarray
 
@@ -49,21 +55,6 @@ MUJOCO_TO_XR.setflags(write=False)
 #: ``XR_TO_MUJOCO`` as a unit quaternion, wxyz: (0.5, 0.5, −0.5, −0.5).
 XR_TO_MUJOCO_QUAT_WXYZ: Array = transforms.mat_to_quat(XR_TO_MUJOCO)
 XR_TO_MUJOCO_QUAT_WXYZ.setflags(write=False)
-
-
-# --- quaternion order -------------------------------------------------------------------------
-
-
-def quat_xyzw_to_wxyz(q_xyzw: Array) -> Array:
-    """Reorder scalar-last quaternions (...,4) to scalar-first (a copy)."""
-    q = np.asarray(q_xyzw)
-    return q[..., [3, 0, 1, 2]]
-
-
-def quat_wxyz_to_xyzw(q_wxyz: Array) -> Array:
-    """Reorder scalar-first quaternions (...,4) to scalar-last (a copy)."""
-    q = np.asarray(q_wxyz)
-    return q[..., [1, 2, 3, 0]]
 
 
 # --- quaternion normalisation for tracking input (products and poses: sim.transforms) ------------
@@ -95,7 +86,7 @@ def mujoco_to_xr_positions(p_mj: Array) -> Array:
 def xr_to_mujoco_quat_wxyz(q_xyzw: Array) -> Array:
     """Orientations (...,4) given xyzw in the XR convention → wxyz in the MuJoCo convention,
     by conjugation (R' = C R Cᵀ; see the module docstring for what happens to local axes)."""
-    q = quat_xyzw_to_wxyz(np.asarray(q_xyzw, dtype=float))
+    q = transforms.quat_xyzw_to_wxyz(np.asarray(q_xyzw, dtype=float))
     return transforms.quat_mul(transforms.quat_mul(XR_TO_MUJOCO_QUAT_WXYZ, q),
                          transforms.quat_conj(XR_TO_MUJOCO_QUAT_WXYZ))
 
@@ -104,7 +95,7 @@ def mujoco_to_xr_quat_xyzw(q_wxyz: Array) -> Array:
     """Inverse of :func:`xr_to_mujoco_quat_wxyz`: MuJoCo wxyz → XR xyzw."""
     q = transforms.quat_mul(transforms.quat_mul(transforms.quat_conj(XR_TO_MUJOCO_QUAT_WXYZ), q_wxyz),
                       XR_TO_MUJOCO_QUAT_WXYZ)
-    return quat_wxyz_to_xyzw(q)
+    return transforms.quat_wxyz_to_xyzw(q)
 
 
 def xr_to_mujoco_pose(p_xr: Array, q_xyzw: Array) -> tuple[Array, Array]:

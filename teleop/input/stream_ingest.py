@@ -43,7 +43,6 @@ import zenoh
 
 from sim import transforms
 from teleop import keys as zkeys
-from teleop.input import frames
 from teleop.input.webxr import NUM_WEBXR_JOINTS, WEBXR_JOINTS, from_webxr_joints
 from teleop.messages import HandFrame, HandState, MessageError, encode
 
@@ -126,7 +125,7 @@ def packet_to_hand(packet: HtsPacket, *, joint_radius_m: float = 0.008) -> HandS
     p_w = packet.wrist_pos * _UNITY_TO_XR
     q_w = np.array([-q_u[0], -q_u[1], q_u[2], q_u[3]]) / n
     lm_xr = packet.landmarks * _UNITY_TO_XR
-    q_wxyz = frames.quat_xyzw_to_wxyz(q_w)
+    q_wxyz = transforms.quat_xyzw_to_wxyz(q_w)
     world = p_w + transforms.rotate(q_wxyz, lm_xr)
     pos = np.full((NUM_WEBXR_JOINTS, 3), np.nan)
     quat = np.full((NUM_WEBXR_JOINTS, 4), np.nan)

@@ -3,7 +3,7 @@
 Why a web page and not an app: the Quest Browser speaks WebXR with hand tracking, so opening
 ``https://<this machine>:8443/`` on the headset is the whole installation. The page
 (``teleop/input/web/``) sends both hands' 25 WebXR joint poses every XR frame over a WebSocket; this
-module converts them once with :func:`teleop.input.webxr.hand_frame_from_webxr` (XR → MuJoCo, PALM
+module converts them once with :func:`teleop.input.web_protocol.parse_ws_frame` (XR → MuJoCo, PALM
 synthesised) and publishes :func:`teleop.messages.encode` bytes on ``dexaug/<rig>/hands``, so the
 bridge cannot tell a headset from a replay. The other way, it forwards the bridge's ``/view``
 JPEGs, a throttled summary of ``/state`` (contacts, held), ``/events`` and a 1 Hz ``status``
@@ -16,46 +16,27 @@ the same ``client_id`` (the page keeps it in sessionStorage) replaces a half-dea
 instead of being refused. A lost socket is noticed by aiohttp's heartbeat; the page shows
 "disconnected, reconnecting" and retries.
 
-Hand-frame wire format (page → ingest, one binary WebSocket message per XR frame, little-endian)::
-
-    offset size type        field
-    0      4    bytes       magic b"DXW1"
-    4      4    uint32      seq (the page's XR frame counter)
-    8      8    float64     t_ms: XR frame time, epoch milliseconds (timeOrigin + frame time)
-    16     1    uint8       flags: bit0 left present, bit1 right present
-    17     3    -           padding
-    20     28   float32[7]  head pose: position (m), quaternion xyzw, XR reference space
-    48     800  float32     per present hand (left first): 25 × (p3, q4 xyzw, radius),
-                            WebXR joint order; NaN for a joint the runtime did not report
+The hand-frame wire format (page → ingest) is :mod:`teleop.input.web_protocol`'s.
 
 Latency: each frame's ``receive_time_s`` is this process's wall clock (``time.time()``) when the
 WebSocket message arrived, so a subscriber on the same machine measures the ingest's added
 latency as ``time.time() − receive_time_s`` (``benchmarks/bench_web_ingest.py``).
 
-TLS: the Quest Browser only grants WebXR to secure origins. :func:`ensure_certificate` makes a
-self-signed certificate for ``localhost`` and this machine's addresses (kept and reused while it
-is valid and covers them, so the headset's one-time "proceed anyway" stays accepted); the
-alternative is plain HTTP to ``localhost`` through ``adb reverse tcp:8443 tcp:8443`` (a secure
-context too).
+TLS: the page is served over HTTPS with :func:`teleop.input.tls.ensure_certificate`'s
+self-signed certificate (or plain HTTP to ``localhost`` through ``adb reverse``).
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
-import datetime as dt
-import ipaddress
 import json
 import logging
-import os
-import socket
 import ssl
-import struct
 import threading
 import time
 import uuid
 from collections import Counter, deque
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -65,148 +46,19 @@ import numpy as np
 import zenoh
 from aiohttp import WSMsgType, web
 
-from sim.errors import DexaugError
 from teleop import keys as zkeys
-from teleop.input.webxr import NUM_WEBXR_JOINTS, hand_frame_from_webxr
-from teleop.messages import HandFrame, MessageError, encode
+from teleop.input.background_server import BackgroundServer, WebIngestError
+from teleop.input.tls import ensure_certificate
+from teleop.input.web_protocol import parse_ws_frame
+from teleop.messages import MessageError, encode
+
+__all__ = ["PAGE_COMMANDS", "WebIngest", "WebIngestConfig"]
 
 logger = logging.getLogger(__name__)
-Array = np.ndarray
 
-WS_MAGIC = b"DXW1"
-_WS_HEADER = struct.Struct("<4sIdB3x7f")
-WS_HEADER_SIZE = _WS_HEADER.size  # 48
-_HAND_FLOATS = NUM_WEBXR_JOINTS * 8
-WS_HAND_SIZE = 4 * _HAND_FLOATS  # 800
 #: Control commands the page may send (the rest of the control API stays on zenoh).
 PAGE_COMMANDS = ("start_recording", "stop_recording", "mark_grasp", "reset_object")
 _LOG_EVERY = 100
-
-
-class WebIngestError(DexaugError):
-    """The web ingest cannot start (port taken, certificate unreadable, page assets missing)."""
-
-
-# --- wire format ---------------------------------------------------------------------------------
-
-
-def pack_ws_frame(seq: int, t_ms: float, head_xr: Array, hands: Mapping[str, Array]) -> bytes:
-    """The page's binary frame (module docstring) from Python: ``head_xr`` (7,) p3 q4 xyzw;
-    ``hands`` side → (25, 8) rows p3 q4 radius. Tests and benchmarks speak the page's protocol
-    with it; the page itself builds the same bytes in ``app.js``."""
-    flags = (1 if "left" in hands else 0) | (2 if "right" in hands else 0)
-    parts = [_WS_HEADER.pack(WS_MAGIC, int(seq) & 0xFFFFFFFF, float(t_ms), flags,
-                             *np.asarray(head_xr, float).reshape(7).tolist())]
-    for side in ("left", "right"):
-        if side in hands:
-            parts.append(np.asarray(hands[side], "<f4").reshape(_HAND_FLOATS).tobytes())
-    return b"".join(parts)
-
-
-def parse_ws_frame(data: bytes, receive_time_s: float, *, source: str = "webxr") -> HandFrame:
-    """One binary message of the page → a :class:`HandFrame` (MuJoCo world, wxyz).
-
-    Raises :class:`MessageError` naming what is wrong (size, magic, flags); joint values the page
-    marked missing (NaN) become invalid joints, a hand without a wrist becomes untracked.
-    """
-    size = len(data)
-    if size < WS_HEADER_SIZE:
-        raise MessageError(f"web hand frame: {size} bytes, the header needs {WS_HEADER_SIZE}")
-    magic, seq, t_ms, flags, *head = _WS_HEADER.unpack_from(data, 0)
-    if magic != WS_MAGIC:
-        raise MessageError(f"web hand frame: magic {magic!r}, expected {WS_MAGIC!r}")
-    if flags & ~3:
-        raise MessageError(f"web hand frame: unknown flag bits {flags:#04x} (0x03 are used)")
-    sides = [s for s, bit in (("left", 1), ("right", 2)) if flags & bit]
-    expected = WS_HEADER_SIZE + len(sides) * WS_HAND_SIZE
-    if size != expected:
-        raise MessageError(f"web hand frame: {size} bytes, expected {expected} for "
-                           f"{len(sides)} hand(s)")
-    hands = {}
-    for k, side in enumerate(sides):
-        j = np.frombuffer(data, "<f4", _HAND_FLOATS, WS_HEADER_SIZE + k * WS_HAND_SIZE)
-        j = j.reshape(NUM_WEBXR_JOINTS, 8).astype(float)
-        hands[side] = (j[:, :3], j[:, 3:7], j[:, 7])
-    head_arr = np.asarray(head, float)
-    if not np.isfinite(head_arr).all():
-        raise MessageError(f"web hand frame: non-finite head pose {head_arr.tolist()}")
-    return hand_frame_from_webxr(int(seq), float(t_ms) * 1e-3, head_arr[:3], head_arr[3:],
-                                 hands, receive_time_s=receive_time_s, source=source)
-
-
-# --- TLS -----------------------------------------------------------------------------------------
-
-
-def local_addresses() -> list[str]:
-    """This machine's IPv4 addresses a headset on the LAN may use (loopback first). Uses no
-    network traffic: a UDP socket "connected" to a private address only picks a route."""
-    out = ["127.0.0.1"]
-    with contextlib.suppress(OSError):
-        for info in socket.getaddrinfo(socket.gethostname(), None, socket.AF_INET):
-            out.append(str(info[4][0]))
-    for probe in ("10.255.255.255", "192.168.255.255"):
-        with contextlib.suppress(OSError), socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-            s.connect((probe, 1))
-            out.append(s.getsockname()[0])
-    return list(dict.fromkeys(a for a in out if a != "0.0.0.0"))
-
-
-def default_cert_dir() -> Path:
-    """``$DEXAUG_CACHE_DIR/web-cert`` (default ``~/.cache/dexaug/web-cert``)."""
-    root = os.environ.get("DEXAUG_CACHE_DIR") or Path.home() / ".cache" / "dexaug"
-    return Path(root) / "web-cert"
-
-
-def ensure_certificate(cert_dir: Path | str | None = None, *, hosts: list[str] | None = None,
-                       valid_days: int = 825) -> tuple[Path, Path]:
-    """``(cert.pem, key.pem)`` in ``cert_dir``: a self-signed certificate for ``localhost``, the
-    machine's host name and ``hosts`` (default: :func:`local_addresses`). An existing one is
-    reused while it is valid for another day and covers those names, so a headset that accepted
-    it once is not asked again; otherwise a new one (EC P-256) replaces it."""
-    from cryptography import x509
-    from cryptography.hazmat.primitives import hashes, serialization
-    from cryptography.hazmat.primitives.asymmetric import ec
-    from cryptography.x509.oid import NameOID
-
-    d = Path(cert_dir) if cert_dir is not None else default_cert_dir()
-    cert_path, key_path = d / "cert.pem", d / "key.pem"
-    ips = hosts if hosts is not None else local_addresses()
-    dns = ["localhost", socket.gethostname()]
-    now = dt.datetime.now(dt.UTC)
-    if cert_path.is_file() and key_path.is_file():
-        try:
-            old = x509.load_pem_x509_certificate(cert_path.read_bytes())
-            san = old.extensions.get_extension_for_class(x509.SubjectAlternativeName).value
-            have = {str(v) for v in san.get_values_for_type(x509.IPAddress)} | \
-                set(san.get_values_for_type(x509.DNSName))
-            if old.not_valid_after_utc > now + dt.timedelta(days=1) and \
-                    set(ips) | set(dns) <= have:
-                return cert_path, key_path
-            logger.info("%s: does not cover %s or expires soon; making a new one", cert_path,
-                        sorted(set(ips) | set(dns) - have))
-        except (ValueError, x509.ExtensionNotFound) as exc:
-            logger.warning("%s: unreadable certificate (%s); making a new one", cert_path, exc)
-    d.mkdir(parents=True, exist_ok=True)
-    key = ec.generate_private_key(ec.SECP256R1())
-    name = x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, "dexaug bridge (self-signed)")])
-    alt = [x509.DNSName(n) for n in dns] + [x509.IPAddress(ipaddress.ip_address(a)) for a in ips]
-    cert = (x509.CertificateBuilder().subject_name(name).issuer_name(name)
-            .public_key(key.public_key()).serial_number(x509.random_serial_number())
-            .not_valid_before(now - dt.timedelta(minutes=5))
-            .not_valid_after(now + dt.timedelta(days=valid_days))
-            .add_extension(x509.SubjectAlternativeName(alt), critical=False)
-            .add_extension(x509.BasicConstraints(ca=False, path_length=None), critical=True)
-            .sign(key, hashes.SHA256()))
-    key_path.write_bytes(key.private_bytes(serialization.Encoding.PEM,
-                                           serialization.PrivateFormat.PKCS8,
-                                           serialization.NoEncryption()))
-    key_path.chmod(0o600)
-    cert_path.write_bytes(cert.public_bytes(serialization.Encoding.PEM))
-    logger.info("wrote a self-signed certificate %s for %s", cert_path, ", ".join(dns + ips))
-    return cert_path, key_path
-
-
-# --- the server ----------------------------------------------------------------------------------
 
 
 @dataclass
@@ -262,9 +114,7 @@ class WebIngest:
         self.ingest_latency_s: deque[float] = deque(maxlen=100_000)
         self._lock = threading.Lock()
         self._client: _Client | None = None
-        self._loop: asyncio.AbstractEventLoop | None = None
-        self._runner: web.AppRunner | None = None
-        self._thread: threading.Thread | None = None
+        self._server: BackgroundServer | None = None
         self._stopped = threading.Event()
         self._next_state_s = 0.0
         self.port: int | None = None
@@ -320,44 +170,10 @@ class WebIngest:
         """Serve in a background thread; returns the page URL (``https://localhost:<port>/``)."""
         ssl_ctx = self._ssl_context()
         app = self._app()
-        ready = threading.Event()
-        errors: list[BaseException] = []
-
-        def serve() -> None:
-            loop = asyncio.new_event_loop()
-            self._loop = loop
-            asyncio.set_event_loop(loop)
-            try:
-                self._runner = web.AppRunner(app, access_log=None, handle_signals=False)
-                loop.run_until_complete(self._runner.setup())
-                site = web.TCPSite(self._runner, self.config.host, self.config.port,
-                                   ssl_context=ssl_ctx)
-                loop.run_until_complete(site.start())
-                server = site._server  # aiohttp keeps the asyncio server here
-                self.port = int(server.sockets[0].getsockname()[1])  # type: ignore[union-attr]
-                poller = loop.create_task(self._status_poller())
-            except BaseException as exc:  # reported to start()'s caller
-                errors.append(exc)
-                ready.set()
-                return
-            ready.set()
-            try:
-                loop.run_forever()
-            finally:
-                poller.cancel()
-                with contextlib.suppress(asyncio.CancelledError):
-                    loop.run_until_complete(poller)
-                loop.run_until_complete(self._runner.cleanup())
-                loop.close()
-
-        self._thread = threading.Thread(target=serve, name="dexaug-web", daemon=True)
-        self._thread.start()
-        if not ready.wait(timeout_s):
-            raise WebIngestError(f"the web server did not start within {timeout_s} s")
-        if errors:
-            exc = errors[0]
-            raise WebIngestError(f"cannot serve on {self.config.host}:{self.config.port}: "
-                                 f"{exc}") from exc
+        self._server = BackgroundServer(app, self.config.host, self.config.port, ssl_ctx,
+                                        task=self._status_poller)
+        self._server.start(timeout_s)
+        self.port = self._server.port
         scheme = "https" if ssl_ctx is not None else "http"
         self.url = f"{scheme}://localhost:{self.port}/"
         logger.info("headset page on %s (WebSocket /ws) for rig %s", self.url, self.keys.rig)
@@ -366,17 +182,12 @@ class WebIngest:
     def close(self) -> None:
         """Stop serving (closing the headset's socket), undeclare, close an owned session."""
         self._stopped.set()
-        loop = self._loop
-        if loop is not None and self._thread is not None:
+        if self._server is not None:
             async def shutdown() -> None:
                 c = self._client
                 if c is not None:
                     await c.ws.close(code=1001, message=b"bridge shutting down")
-            with contextlib.suppress(Exception):
-                asyncio.run_coroutine_threadsafe(shutdown(), loop).result(5.0)
-            loop.call_soon_threadsafe(loop.stop)
-            self._thread.join(10.0)
-            self._thread = None
+            self._server.stop(shutdown)
         for ent in (*self._subs, self._pub):
             with contextlib.suppress(Exception):
                 ent.undeclare()
@@ -404,7 +215,8 @@ class WebIngest:
 
     def _push(self, text: str | None = None, view: bytes | None = None) -> None:
         """Queue a message for the headset (from any thread); dropped when none is connected."""
-        loop, c = self._loop, self._client
+        loop = self._server.loop if self._server is not None else None
+        c = self._client
         if loop is None or c is None:
             return
 

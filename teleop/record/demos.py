@@ -6,7 +6,7 @@ frame_palm in the object frame, and per finger the contact centroid in its finge
 
 Where the grasp moment is. A bridge recording holds ``/state`` (simulated qpos, palm and object
 poses in the world) and ``/contacts`` (hand–object contacts, tagged with the finger whose tip
-body touches) at the same log times. A *stable grasp* is a run of states in which at least
+body touches), one of each per bridge step. A *stable grasp* is a run of states in which at least
 ``min_fingers`` fingertips touch the object, the hand's most important finger (its first in
 priority order: the thumb for the Shadow Hand) among them, lasting at least ``min_duration_s``;
 the moment inside a run is the state with the most fingertips in contact (the middle one of
@@ -16,6 +16,18 @@ An operator's ``grasp_mark`` event is an explicit moment: the state it names
 best state within ``mark_window_s`` is taken instead, and a mark with none is reported, not
 silently dropped. A mark within ``mark_window_s`` of a stable run replaces that run's own
 moment (one demo per grasp).
+
+One clock: the simulation's. A state and its contacts are paired by the step's ``seq`` and
+simulated time ``t_s`` (both carried by each since the bridge writes them; ``seq`` alone
+repeats, as a live bridge publishes several states per frame while physics advances), else by
+``t_s`` alone (older recordings), else by identical log time (files whose records carry no
+``t_s``). Every duration — ``min_duration_s``, ``max_gap_s``, ``mark_window_s`` — is measured
+in the states' simulated time, so a session re-recorded faster or slower than real time gives
+the same demos; an object change restarts the simulation's clock, and the states after it
+continue from the last one before (plus the log time between them). A ``grasp_mark`` names its
+state by ``seq`` when it carries one (the last state with it), else by its simulated ``t_s``
+(the last state at or before it), else by log time (the last state logged at or before it).
+Log times only place a demo in its file: :attr:`sim.demo.Demo.time_s` and the demo id.
 
 Why simulated contacts and not the operator's hand: the augmenter works on the robot hand's
 grasp, and the recording's contacts are the robot's, in the robot fingertip frames.
@@ -45,7 +57,8 @@ class DemoParams:
     """Grasp-moment detection. ``min_fingers`` fingertips (the first finger of the hand among
     them) in contact for at least ``min_duration_s`` seconds, losses shorter than
     ``max_gap_s`` bridged; a ``grasp_mark`` belongs to a contact run within ``mark_window_s``
-    seconds of it, and may look that far either side for a state with enough contacts."""
+    seconds of it, and may look that far either side for a state with enough contacts. All
+    seconds of simulated time (module docstring)."""
 
     min_fingers: int = 2
     min_duration_s: float = 0.3
@@ -55,13 +68,52 @@ class DemoParams:
 
 @dataclass
 class _Track:
-    """Per-state arrays of a session: log times (ns), seq, qpos, poses, fingertip contacts."""
+    """Per-state arrays of a session: log times (ns), the extraction clock (nanoseconds of
+    simulated time, see :func:`_clock_ns`) and its offset from the states' own ``t_s``, seq,
+    states, fingertip contacts."""
 
     t_ns: np.ndarray
+    clock_ns: np.ndarray
+    offset_ns: np.ndarray | None
     seq: list[int | None]
     states: list[dict[str, Any]]
     contacts: list[list[dict[str, Any]]]
     fingers_touching: list[frozenset[str]]
+
+
+def _pairing(contacts: list[tuple[int, dict[str, Any]]]) -> str:
+    """How the ``/contacts`` of a state are found: ``"seq"`` (the step's seq and t_s), ``"sim"``
+    (t_s) or ``"log"`` (log time), the best every contacts message allows."""
+    if contacts and all("seq" in c for _, c in contacts):
+        return "seq"
+    if contacts and all(_finite(c.get("t_s")) for _, c in contacts):
+        return "sim"
+    return "log"
+
+
+def _finite(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool) and np.isfinite(value)
+
+
+def _step_key(log_ns: int, msg: dict[str, Any], pairing: str) -> Any:
+    if pairing == "seq":
+        return msg.get("seq"), msg.get("t_s")
+    return msg.get("t_s") if pairing == "sim" else log_ns
+
+
+def _clock_ns(states: list[dict[str, Any]], t_ns: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray | None]:
+    """Per state, integer nanoseconds on one monotone simulated clock (integers, like log times:
+    durations are exact differences), and its offset from the states' ``t_s`` (None when some
+    state has no ``t_s``: then the clock is the log time)."""
+    raw = [s.get("t_s") for s in states]
+    if not all(_finite(t) for t in raw):
+        return t_ns, None
+    t = np.array([round(float(v) * 1e9) for v in raw], np.int64)
+    clock = t.copy()
+    for j in np.flatnonzero(np.diff(t) < 0) + 1:  # the scene was rebuilt: sim time restarted
+        clock[j:] += clock[j - 1] - clock[j] + (t_ns[j] - t_ns[j - 1])
+    return clock, clock - t
 
 
 def _track(session: Session, fingers: tuple[str, ...]) -> _Track:
@@ -71,17 +123,22 @@ def _track(session: Session, fingers: tuple[str, ...]) -> _Track:
             raise DemoError(f"{where}: no {topic} messages; the session holds raw input only "
                             f"(record it through the bridge: `dexaug rerecord {where} OUT.mcap`)")
     states = session.json_messages(TOPIC_STATE)
-    by_time = {t: c for t, c in session.json_messages(TOPIC_CONTACTS)}
+    contacts = session.json_messages(TOPIC_CONTACTS)
+    pairing = _pairing(contacts)
+    by_step = {_step_key(t, c, pairing): c for t, c in contacts}
     known = set(fingers)
     t_ns, seq, st, con, touching = [], [], [], [], []
     for t, s in states:
-        c = [x for x in by_time.get(t, {}).get("contacts", []) if x.get("finger") in known]
+        c = [x for x in by_step.get(_step_key(t, s, pairing), {}).get("contacts", [])
+             if x.get("finger") in known]
         t_ns.append(t)
         seq.append(s.get("seq"))
         st.append(s)
         con.append(c)
         touching.append(frozenset(x["finger"] for x in c))
-    return _Track(np.asarray(t_ns, np.int64), seq, st, con, touching)
+    log_ns = np.asarray(t_ns, np.int64)
+    clock, offset = _clock_ns(st, log_ns) if st else (log_ns, None)
+    return _Track(log_ns, clock, offset, seq, st, con, touching)
 
 
 def _runs(ok: np.ndarray) -> list[tuple[int, int]]:
@@ -90,12 +147,12 @@ def _runs(ok: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True))
 
 
-def _merged_runs(t_ns: np.ndarray, ok: np.ndarray, max_gap_s: float) -> list[tuple[int, int]]:
+def _merged_runs(clock_ns: np.ndarray, ok: np.ndarray, max_gap_s: float) -> list[tuple[int, int]]:
     """True runs of ``ok`` with gaps shorter than ``max_gap_s`` bridged: a fingertip that
     flickers off for a few frames while the object is held is the same grasp."""
     merged: list[tuple[int, int]] = []
     for lo, hi in _runs(ok):
-        if merged and (int(t_ns[lo]) - int(t_ns[merged[-1][1] - 1])) * 1e-9 <= max_gap_s:
+        if merged and (int(clock_ns[lo]) - int(clock_ns[merged[-1][1] - 1])) * 1e-9 <= max_gap_s:
             merged[-1] = (merged[-1][0], hi)
         else:
             merged.append((lo, hi))
@@ -161,9 +218,10 @@ def extract_demos(path: Path | str, params: DemoParams | None = None) -> list[De
     lead = fingers[0]
     n_touch = np.array([len(f) for f in track.fingers_touching])
     ok = np.array([lead in f for f in track.fingers_touching]) & (n_touch >= p.min_fingers)
+    clock = track.clock_ns
     runs = []
-    for lo, hi in _merged_runs(track.t_ns, ok, p.max_gap_s):
-        dur = (int(track.t_ns[hi - 1]) - int(track.t_ns[lo])) * 1e-9
+    for lo, hi in _merged_runs(clock, ok, p.max_gap_s):
+        dur = (int(clock[hi - 1]) - int(clock[lo])) * 1e-9
         if dur >= p.min_duration_s:
             runs.append((lo, hi, dur))
     marks = _mark_states(session, track, p, lead, ok)
@@ -171,7 +229,7 @@ def extract_demos(path: Path | str, params: DemoParams | None = None) -> list[De
     moments: dict[int, tuple[str, float]] = {}
     for lo, hi, dur in runs:
         near = [m for m in marks
-                if track.t_ns[lo] - window_ns <= track.t_ns[m] <= track.t_ns[hi - 1] + window_ns]
+                if clock[lo] - window_ns <= clock[m] <= clock[hi - 1] + window_ns]
         marks = [m for m in marks if m not in near]
         moments[near[0] if near else _best_in(track, lo, hi)] = (
             "grasp_mark" if near else "stable contact", dur)
@@ -190,14 +248,12 @@ def _mark_states(session: Session, track: _Track, p: DemoParams, lead: str,
     for t, ev in session.events():
         if ev.get("type") != "grasp_mark":
             continue
-        payload = ev.get("payload") or {}
-        seq = payload.get("seq")
-        hits = [i for i, s in enumerate(track.seq) if seq is not None and s == seq]
-        i = hits[-1] if hits else max(int(np.searchsorted(track.t_ns, t, side="right")) - 1, 0)
+        i = _marked_state(track, t, ev)
         if ok[i]:
             out.append(i)
             continue
-        win = np.flatnonzero(ok & (np.abs(track.t_ns - track.t_ns[i]) <= p.mark_window_s * 1e9))
+        win = np.flatnonzero(ok & (np.abs(track.clock_ns - track.clock_ns[i])
+                                   <= p.mark_window_s * 1e9))
         if len(win):
             out.append(int(win[np.argmin(np.abs(win - i))]))
         else:
@@ -208,6 +264,20 @@ def _mark_states(session: Session, track: _Track, p: DemoParams, lead: str,
     return out
 
 
+def _marked_state(track: _Track, log_ns: int, event: dict[str, Any]) -> int:
+    """The state a ``grasp_mark`` (logged at ``log_ns``) names: by seq, else by simulated time,
+    else by log time (module docstring)."""
+    seq = (event.get("payload") or {}).get("seq")
+    hits = [i for i, s in enumerate(track.seq) if seq is not None and s == seq]
+    if hits:
+        return hits[-1]
+    last_logged = max(int(np.searchsorted(track.t_ns, log_ns, side="right")) - 1, 0)
+    if track.offset_ns is None or not _finite(event.get("t_s")):
+        return last_logged
+    t = round(float(event["t_s"]) * 1e9) + int(track.offset_ns[last_logged])  # that scene's
+    return max(int(np.searchsorted(track.clock_ns, t, side="right")) - 1, 0)
+
+
 def _why_not(track: _Track, n_touch: np.ndarray, ok: np.ndarray, lead: str,
              p: DemoParams) -> str:
     if not n_touch.any():
@@ -216,6 +286,7 @@ def _why_not(track: _Track, n_touch: np.ndarray, ok: np.ndarray, lead: str,
         most = max(track.fingers_touching, key=len)
         return (f"never {p.min_fingers} fingertips with the {lead} among them in contact (most "
                 f"at once: {sorted(most)})")
-    longest = max((int(track.t_ns[hi - 1]) - int(track.t_ns[lo])) * 1e-9 for lo, hi in _runs(ok))
+    longest = max((int(track.clock_ns[hi - 1]) - int(track.clock_ns[lo])) * 1e-9
+                  for lo, hi in _runs(ok))
     return (f"the longest contact with >= {p.min_fingers} fingertips lasted {longest:.2f} s, "
             f"less than {p.min_duration_s} s, and no grasp_mark event was usable")

@@ -31,24 +31,22 @@ for tens of milliseconds on slow disks; :meth:`close` always syncs). The checks 
 message is written, so a loop that stops writing should call :meth:`flush`.
 
 Timestamps: every ``write_*`` takes ``log_time_ns`` (nanoseconds; default ``time.time_ns()``,
-Unix epoch, which Foxglove displays as dates). Session-relative times ``t_s`` in the JSON
-payloads default to seconds since the recorder opened. The recorder is thread-safe (one lock):
+Unix epoch, which Foxglove displays as dates). The JSON payloads' ``t_s`` is the caller's clock
+of the record — the bridge passes its simulated time, the same for the ``/state``,
+``/contacts`` and ``/events`` of one step, and ``/state`` and ``/contacts`` also share the
+step's ``seq`` — and defaults to seconds since the recorder opened. The recorder is thread-safe (one lock):
 zenoh callbacks may write ``/hands`` while the bridge loop writes the rest.
 """
 
 from __future__ import annotations
 
-import datetime as _dt
-import json
 import logging
 import os
-import platform
 import threading
 import time
 from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from importlib import metadata as _importlib_metadata
 from pathlib import Path
 from typing import Any
 
@@ -56,9 +54,13 @@ import numpy as np
 from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, Writer
 
 from teleop import messages as hand_messages
-from teleop.record import schemas
-from teleop.record.schemas import ContactRecord, FrameTransform
+from teleop.record import foxglove, schemas
+from teleop.record.contact_record import ContactRecord
+from teleop.record.foxglove import FrameTransform
+from teleop.record.metadata import encode_metadata, session_metadata
 from teleop.record.session import SessionError
+
+__all__ = ["RecorderStats", "SessionRecorder"]
 
 log = logging.getLogger(__name__)
 
@@ -68,13 +70,6 @@ _COMPRESSION = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4,
 _MESSAGE_OVERHEAD = 9 + 22
 #: Event types only the recorder writes (at open and at close).
 _RECORDER_EVENTS = frozenset({"recording_started", "recording_stopped"})
-
-
-def _package_version(name: str) -> str:
-    try:
-        return _importlib_metadata.version(name)
-    except _importlib_metadata.PackageNotFoundError:
-        return "not installed"
 
 
 @dataclass
@@ -134,7 +129,8 @@ class SessionRecorder:
         self.start_time_ns = time.time_ns() if start_time_ns is None else int(start_time_ns)
         self._last_log_ns = self.start_time_ns
         self.stats = RecorderStats()
-        self.metadata = self._session_metadata(metadata)
+        self.metadata = session_metadata(metadata, start_time_ns=self.start_time_ns,
+                                         own_clock=self._own_clock)
         joint_names = self.metadata.get("joint_names")
         if joint_names is not None and (not isinstance(joint_names, list | tuple) or
                                         not all(isinstance(n, str) for n in joint_names)):
@@ -143,7 +139,7 @@ class SessionRecorder:
                                                     else None)
         self.fingers: tuple[str, ...] = tuple(self.metadata.get("fingers", ()))
         self.current_object: str | None = self.metadata.get("object")
-        metadata_record = self._metadata_record(self.metadata)  # fails before the file exists
+        metadata_record = encode_metadata(self.metadata)  # fails before the file exists
         self._lock = threading.RLock()
         self._closed = False
         self._pending_topics: Counter[str] = Counter()
@@ -182,46 +178,6 @@ class SessionRecorder:
                  self.flush_interval_s, compression)
         self._write_event_unchecked("recording_started", {"path": str(self.path)},
                                     None, self.start_time_ns)
-
-    # --- metadata ---------------------------------------------------------------------------------
-
-    def _session_metadata(self, user: Mapping[str, Any]) -> dict[str, Any]:
-        reserved = {"format_version", schemas.JSON_KEYS_KEY}
-        clash = reserved & set(user)
-        if clash:
-            raise ValueError(f"metadata keys {sorted(clash)} are set by the recorder")
-        meta: dict[str, Any] = {
-            "format_version": schemas.FORMAT_VERSION,
-            "dexaug_version": _package_version("dexaug"),
-            "mcap_version": _package_version("mcap"),
-            "numpy_version": np.__version__,
-            "mujoco_version": _package_version("mujoco"),
-            "python_version": platform.python_version(),
-            "created_utc": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
-            "start_time_ns": self.start_time_ns,
-            "clock": "unix_ns" if self._own_clock else "caller",
-        }
-        meta.update(user)
-        return meta
-
-    @staticmethod
-    def _metadata_record(meta: Mapping[str, Any]) -> dict[str, str]:
-        """MCAP metadata values are strings: plain strings stay readable in any viewer, other
-        values are JSON and listed under :data:`schemas.JSON_KEYS_KEY` for exact round trips."""
-        record: dict[str, str] = {}
-        json_keys = []
-        for key, value in meta.items():
-            if isinstance(value, str):
-                record[key] = value
-            else:
-                try:
-                    record[key] = json.dumps(value, allow_nan=False, default=_json_default)
-                except (TypeError, ValueError) as exc:
-                    raise ValueError(f"metadata[{key!r}] is not JSON-serialisable: {exc}"
-                                     ) from None
-                json_keys.append(key)
-        record[schemas.JSON_KEYS_KEY] = json.dumps(sorted(json_keys))
-        return record
 
     # --- core -------------------------------------------------------------------------------------
 
@@ -317,27 +273,31 @@ class SessionRecorder:
                            extra=dict(extra) if extra else {})
             self._add(schemas.TOPIC_STATE, schemas.dumps(payload), t)
             if self.auto_tf:
-                self._add(schemas.TOPIC_TF, schemas.dumps(schemas.frame_transforms(
+                self._add(schemas.TOPIC_TF, schemas.dumps(foxglove.frame_transforms(
                     [FrameTransform(schemas.FRAME_WORLD, schemas.FRAME_PALM, palm_pos_m,
                                     palm_quat_wxyz),
                      FrameTransform(schemas.FRAME_WORLD, schemas.FRAME_OBJECT, object_pos_m,
                                     object_quat_wxyz)], t)), t)
 
     def write_contacts(self, contacts: Sequence[ContactRecord], *, t_s: float | None = None,
-                       object_name: str | None = None, log_time_ns: int | None = None) -> None:
+                       seq: int | None = None, object_name: str | None = None,
+                       log_time_ns: int | None = None) -> None:
         """Hand–object contacts on ``/contacts`` (possibly none: an empty list records "no
         contact" explicitly); with ``contact_markers`` also the ``contacts`` entity on
-        ``/markers`` (spheres coloured by finger, normal arrows scaled by force)."""
+        ``/markers`` (spheres coloured by finger, normal arrows scaled by force). ``t_s`` and
+        ``seq`` are those of the ``/state`` of the same step: demo extraction pairs the two on
+        them (module docstring)."""
         items = [c.to_json() for c in contacts]
         with self._lock:
             t = self._now(log_time_ns)
-            payload = {"t_s": self._t_s(t_s, t), "contacts": items,
+            payload = {"t_s": self._t_s(t_s, t), "seq": None if seq is None else int(seq),
+                       "contacts": items,
                        "object": object_name if object_name is not None else self.current_object}
             self._add(schemas.TOPIC_CONTACTS, schemas.dumps(payload), t)
             if self.contact_markers:
-                entity = schemas.contact_entity(contacts, t, fingers=self.fingers)
+                entity = foxglove.contact_entity(contacts, t, fingers=self.fingers)
                 self._add(schemas.TOPIC_MARKERS,
-                          schemas.dumps(schemas.scene_update([entity])), t)
+                          schemas.dumps(foxglove.scene_update([entity])), t)
 
     def write_event(self, event_type: str, payload: Mapping[str, Any] | None = None, *,
                     t_s: float | None = None, log_time_ns: int | None = None) -> None:
@@ -368,16 +328,17 @@ class SessionRecorder:
         Foxglove), as ``foxglove.FrameTransforms``."""
         with self._lock:
             t = self._now(log_time_ns)
-            self._add(schemas.TOPIC_TF, schemas.dumps(schemas.frame_transforms(transforms, t)), t)
+            self._add(schemas.TOPIC_TF, schemas.dumps(foxglove.frame_transforms(transforms, t)), t)
 
     def write_markers(self, scene_update: Mapping[str, Any], log_time_ns: int | None = None
                       ) -> None:
-        """A ``foxglove.SceneUpdate`` on ``/markers`` (build it with :mod:`teleop.record.schemas`:
-        :func:`~teleop.record.schemas.scene_update`, :func:`~teleop.record.schemas.model` for the object
-        mesh, :func:`~teleop.record.schemas.hand_skeleton_entity` for the operator's hand)."""
+        """A ``foxglove.SceneUpdate`` on ``/markers`` (build it with :mod:`teleop.record.foxglove`:
+        :func:`~teleop.record.foxglove.scene_update`, :func:`~teleop.record.foxglove.model` for the
+        object mesh, :func:`~teleop.record.foxglove.hand_skeleton_entity` for the operator's
+        hand)."""
         if "entities" not in scene_update and "deletions" not in scene_update:
             raise ValueError("scene_update must be a foxglove.SceneUpdate dict (entities/"
-                             "deletions); see teleop.record.schemas.scene_update")
+                             "deletions); see teleop.record.foxglove.scene_update")
         with self._lock:
             self._add(schemas.TOPIC_MARKERS, schemas.dumps(scene_update), self._now(log_time_ns))
 
@@ -392,7 +353,7 @@ class SessionRecorder:
         with self._lock:
             t = self._now(log_time_ns)
             self._add(schemas.TOPIC_VIEW,
-                      schemas.dumps(schemas.compressed_image(bytes(jpeg), t, frame_id=frame_id)),
+                      schemas.dumps(foxglove.compressed_image(bytes(jpeg), t, frame_id=frame_id)),
                       t)
         return True
 
@@ -428,12 +389,3 @@ class SessionRecorder:
                  tb: object) -> None:
         self.close(reason="closed" if exc is None else f"exception: {exc_type.__name__}: {exc}")
 
-
-def _json_default(value: Any) -> Any:
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, Path):
-        return str(value)
-    raise TypeError(f"{type(value).__name__} is not JSON-serialisable")

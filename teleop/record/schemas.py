@@ -38,26 +38,30 @@ folder), so a session opens in Foxglove's 3D and Image panels with no configurat
 Conventions of the JSON payloads (DESIGN section 3): SI units with the unit in the field name
 (``_m`` metres, ``_s`` seconds, ``_n`` newtons, ``qpos`` radians), quaternions **wxyz** in our
 own schemas (field names end in ``_wxyz``) and **xyzw** in Foxglove's (their convention, the
-swap happens in :func:`frame_transforms`/:func:`pose`), non-finite numbers written as ``null``
+swap happens in :mod:`teleop.record.foxglove`), non-finite numbers written as ``null``
 (JSON has no NaN). Every message's MCAP log time is nanoseconds since the Unix epoch unless the
 recorder's caller chose another clock (the metadata's ``clock`` key says which).
 """
 
 from __future__ import annotations
 
-import base64
 import json
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from sim import transforms
 from teleop import messages as hand_messages
 
-Array = np.ndarray
+__all__ = ["CHANNELS", "CHANNEL_BY_TOPIC", "COMPRESSED_IMAGE_SCHEMA", "CONTACTS_SCHEMA",
+           "EVENT_SCHEMA", "EVENT_TYPES", "FORMAT_VERSION", "FRAME_OBJECT", "FRAME_PALM",
+           "FRAME_TRANSFORMS_SCHEMA", "FRAME_WORLD", "HANDS_MESSAGE_ENCODING",
+           "HANDS_SCHEMA_ENCODING", "HANDS_SCHEMA_NAME", "JSON_KEYS_KEY", "JSON_TOPICS",
+           "METADATA_NAME", "SCENE_UPDATE_SCHEMA", "STATE_SCHEMA", "TOPIC_CONTACTS",
+           "TOPIC_EVENTS", "TOPIC_HANDS", "TOPIC_MARKERS", "TOPIC_STATE", "TOPIC_TF",
+           "TOPIC_VIEW", "ChannelSpec", "dumps", "finite_list"]
 
 #: Version of the session layout (topics, schemas, metadata keys); readers check it.
 FORMAT_VERSION = 1
@@ -122,10 +126,13 @@ def _schema_bytes(schema: Mapping[str, Any]) -> bytes:
 
 # --- our JSON schemas -----------------------------------------------------------------------------
 
+_T_S = ("clock of the record, seconds: the bridge's simulated time of the step (the same on every "
+        "record of one step), else seconds since the recording started")
+
 STATE_SCHEMA: dict[str, Any] = {
     "$schema": "https://json-schema.org/draft/2020-12/schema",
     **_object({
-        "t_s": _num("bridge clock, seconds since the recording started"),
+        "t_s": _num(_T_S),
         "seq": {"type": ["integer", "null"],
                 "description": "seq of the /hands frame this state was computed from"},
         "tracked": {"type": "boolean", "description": "the driving hand was tracked"},
@@ -162,7 +169,9 @@ _CONTACT_ITEM = _object({
 CONTACTS_SCHEMA: dict[str, Any] = {
     "$schema": "https://json-schema.org/draft/2020-12/schema",
     **_object({
-        "t_s": _num("bridge clock, seconds since the recording started"),
+        "t_s": _num(_T_S),
+        "seq": {"type": ["integer", "null"],
+                "description": "seq of the /state of the same bridge step"},
         "object": {"type": ["string", "null"], "description": "object in contact"},
         "contacts": {"type": "array", "items": _CONTACT_ITEM},
     }, ["t_s", "contacts"], title="dexaug.Contacts",
@@ -173,7 +182,7 @@ EVENT_SCHEMA: dict[str, Any] = {
     "$schema": "https://json-schema.org/draft/2020-12/schema",
     **_object({
         "type": {"type": "string", "enum": list(EVENT_TYPES)},
-        "t_s": _num("bridge clock, seconds since the recording started"),
+        "t_s": _num(_T_S),
         "payload": {"type": "object", "description": "event-specific values (e.g. object name)"},
     }, ["type", "t_s", "payload"], title="dexaug.Event",
         description="An operator or recorder event."),
@@ -333,249 +342,3 @@ def dumps(payload: Mapping[str, Any]) -> bytes:
     """Compact JSON bytes; raises ValueError on NaN/inf (use :func:`finite_list` first), so no
     file ever holds JSON that strict parsers (Foxglove's) reject."""
     return json.dumps(payload, separators=(",", ":"), allow_nan=False).encode("utf-8")
-
-
-def time_dict(t_ns: int) -> dict[str, int]:
-    """Foxglove ``time`` {sec, nsec} of a timestamp in nanoseconds."""
-    sec, nsec = divmod(int(t_ns), 1_000_000_000)
-    return {"sec": sec, "nsec": nsec}
-
-
-def pose(pos_m: Any, quat_wxyz: Any) -> dict[str, Any]:
-    """Foxglove ``Pose`` (position metres, orientation **xyzw**) from a wxyz quaternion."""
-    px, py, pz = (float(v) for v in pos_m)
-    qw, qx, qy, qz = (float(v) for v in quat_wxyz)
-    return {"position": {"x": px, "y": py, "z": pz},
-            "orientation": {"x": qx, "y": qy, "z": qz, "w": qw}}
-
-
-def color(r: float, g: float, b: float, a: float = 1.0) -> dict[str, float]:
-    """Foxglove ``Color``, components in [0, 1]."""
-    return {"r": float(r), "g": float(g), "b": float(b), "a": float(a)}
-
-
-@dataclass(frozen=True)
-class FrameTransform:
-    """A transform for ``/tf``: ``child`` frame pose in ``parent`` (metres, quaternion wxyz)."""
-
-    parent: str
-    child: str
-    pos_m: Any
-    quat_wxyz: Any
-
-
-def frame_transforms(transforms: Iterable[FrameTransform], t_ns: int) -> dict[str, Any]:
-    """A ``foxglove.FrameTransforms`` payload (quaternions converted to xyzw)."""
-    stamp = time_dict(t_ns)
-    out = []
-    for tf in transforms:
-        p = pose(tf.pos_m, tf.quat_wxyz)
-        out.append({"timestamp": stamp, "parent_frame_id": tf.parent,
-                    "child_frame_id": tf.child, "translation": p["position"],
-                    "rotation": p["orientation"]})
-    return {"transforms": out}
-
-
-def scene_entity(entity_id: str, t_ns: int, *, frame_id: str = FRAME_WORLD,
-                 **primitives: list[dict[str, Any]]) -> dict[str, Any]:
-    """A ``foxglove.SceneEntity`` with every primitive list present (empty unless given), so
-    strict decoders never meet a missing field. ``primitives``: arrows=, spheres=, lines=, …"""
-    kinds = ("arrows", "cubes", "spheres", "cylinders", "lines", "triangles", "texts", "models")
-    unknown = set(primitives) - set(kinds)
-    if unknown:
-        raise ValueError(f"unknown SceneEntity primitive list(s): {sorted(unknown)}")
-    entity: dict[str, Any] = {"timestamp": time_dict(t_ns), "frame_id": frame_id,
-                              "id": entity_id, "lifetime": {"sec": 0, "nsec": 0},
-                              "frame_locked": False, "metadata": []}
-    for kind in kinds:
-        entity[kind] = list(primitives.get(kind, ()))
-    return entity
-
-
-def scene_update(entities: Sequence[dict[str, Any]] = (),
-                 deletions: Sequence[dict[str, Any]] = ()) -> dict[str, Any]:
-    """A ``foxglove.SceneUpdate`` payload."""
-    return {"deletions": list(deletions), "entities": list(entities)}
-
-
-def sphere(pos_m: Any, diameter_m: float, rgba: dict[str, float]) -> dict[str, Any]:
-    """A ``SpherePrimitive`` at ``pos_m`` (metres) of the given diameter (metres)."""
-    return {"pose": pose(pos_m, (1.0, 0.0, 0.0, 0.0)),
-            "size": {"x": diameter_m, "y": diameter_m, "z": diameter_m}, "color": rgba}
-
-
-def arrow(tail_m: Any, direction: Any, length_m: float, rgba: dict[str, float], *,
-          shaft_diameter_m: float = 0.002) -> dict[str, Any] | None:
-    """An ``ArrowPrimitive`` from ``tail_m`` along ``direction`` (any length), ``length_m`` long;
-    None when the direction is zero or not finite."""
-    dx, dy, dz = (float(v) for v in direction)
-    n = math.sqrt(dx * dx + dy * dy + dz * dz)
-    if not math.isfinite(n) or n < 1e-12 or not math.isfinite(length_m) or length_m <= 0:
-        return None
-    dx, dy, dz = dx / n, dy / n, dz / n
-    # shortest rotation taking +x (Foxglove's arrow axis) onto d: q ∝ (1 + x·d, x × d)
-    w, ax, ay, az = 1.0 + dx, 0.0, -dz, dy
-    qn = math.sqrt(w * w + ay * ay + az * az)
-    q = (0.0, 0.0, 0.0, 1.0) if qn < 1e-9 else (w / qn, ax, ay / qn, az / qn)
-    head = min(0.3 * length_m, 0.01)
-    return {"pose": pose(tail_m, q), "shaft_length": max(length_m - head, 0.0),
-            "shaft_diameter": shaft_diameter_m, "head_length": head,
-            "head_diameter": 2.5 * shaft_diameter_m, "color": rgba}
-
-
-def model(url: str, pos_m: Any, quat_wxyz: Any, *, scale: float = 1.0,
-          media_type: str = "", rgba: dict[str, float] | None = None) -> dict[str, Any]:
-    """A ``ModelPrimitive`` referencing a mesh by URL (e.g. ``file:///…/textured.obj`` or
-    ``package://…``); Foxglove loads glTF/GLB, STL, OBJ and DAE."""
-    return {"pose": pose(pos_m, quat_wxyz), "scale": {"x": scale, "y": scale, "z": scale},
-            "color": rgba or color(0.7, 0.7, 0.7, 1.0), "use_embedded_materials": rgba is None,
-            "url": url, "media_type": media_type, "data": ""}
-
-
-def line_list(points_m: Any, rgba: dict[str, float], *, thickness_m: float = 0.003
-              ) -> dict[str, Any]:
-    """A ``LinePrimitive`` of type LINE_LIST (pairs of points, metres, world frame)."""
-    pts = np.asarray(points_m, dtype=float).reshape(-1, 3)
-    return {"type": 2, "pose": pose((0, 0, 0), (1, 0, 0, 0)), "thickness": thickness_m,
-            "scale_invariant": False,
-            "points": [{"x": p[0], "y": p[1], "z": p[2]} for p in pts.tolist()],
-            "color": rgba, "colors": [], "indices": []}
-
-
-def compressed_image(jpeg: bytes, t_ns: int, *, frame_id: str = "view",
-                     image_format: str = "jpeg") -> dict[str, Any]:
-    """A ``foxglove.CompressedImage`` payload (JSON encoding: data is base64)."""
-    return {"timestamp": time_dict(t_ns), "frame_id": frame_id,
-            "data": base64.b64encode(jpeg).decode("ascii"), "format": image_format}
-
-
-# --- contacts ---------------------------------------------------------------------------------------
-
-
-@dataclass
-class ContactRecord:
-    """One hand–object contact as recorded on ``/contacts``.
-
-    Positions metres, normals unit vectors from the hand into the object (the direction of the
-    force the hand applies, as :mod:`sim.world.contacts`), each expressed in the world, in the object
-    frame (``frame_obj``) and in the frame of ``hand_body`` (the fingertip body for fingertip
-    contacts: what AutoWS needs). ``dist_m`` is the signed distance (negative = penetration),
-    ``force_n`` the normal force in newtons (NaN when not computed).
-    """
-
-    finger: str | None
-    hand_body: str
-    pos_world_m: Array
-    normal_world: Array
-    pos_object_m: Array
-    normal_object: Array
-    pos_hand_body_m: Array
-    normal_hand_body: Array
-    dist_m: float
-    force_n: float = float("nan")
-
-    @classmethod
-    def from_world(cls, *, finger: str | None, hand_body: str, pos_world_m: Any,
-                   normal_world: Any, dist_m: float, object_pos_m: Any, object_quat_wxyz: Any,
-                   body_pos_m: Any, body_quat_wxyz: Any,
-                   force_n: float = float("nan")) -> ContactRecord:
-        """Express a world contact in the object and hand-body frames, given both frames'
-        world poses (metres, quaternions wxyz)."""
-        p = np.asarray(pos_world_m, dtype=float)
-        n = np.asarray(normal_world, dtype=float)
-        inv_obj_p, inv_obj_q = transforms.pose_inv(np.asarray(object_pos_m, float),
-                                                        np.asarray(object_quat_wxyz, float))
-        inv_body_p, inv_body_q = transforms.pose_inv(np.asarray(body_pos_m, float),
-                                                          np.asarray(body_quat_wxyz, float))
-        return cls(finger=finger, hand_body=hand_body, pos_world_m=p, normal_world=n,
-                   pos_object_m=inv_obj_p + transforms.rotate(inv_obj_q, p),
-                   normal_object=transforms.rotate(inv_obj_q, n),
-                   pos_hand_body_m=inv_body_p + transforms.rotate(inv_body_q, p),
-                   normal_hand_body=transforms.rotate(inv_body_q, n),
-                   dist_m=float(dist_m), force_n=float(force_n))
-
-    def to_json(self) -> dict[str, Any]:
-        """The ``dexaug.Contact`` JSON object."""
-        force = float(self.force_n)
-        dist = float(self.dist_m)
-        return {"finger": self.finger, "hand_body": self.hand_body,
-                "pos_world_m": finite_list(self.pos_world_m),
-                "normal_world": finite_list(self.normal_world),
-                "pos_object_m": finite_list(self.pos_object_m),
-                "normal_object": finite_list(self.normal_object),
-                "pos_hand_body_m": finite_list(self.pos_hand_body_m),
-                "normal_hand_body": finite_list(self.normal_hand_body),
-                "dist_m": dist if np.isfinite(dist) else None,
-                "force_n": force if np.isfinite(force) else None}
-
-    @classmethod
-    def from_json(cls, obj: Mapping[str, Any]) -> ContactRecord:
-        """Inverse of :meth:`to_json` (``None`` numbers come back as NaN)."""
-        def arr(key: str) -> Array:
-            return np.array([np.nan if v is None else v for v in obj[key]], dtype=float)
-
-        def num(key: str) -> float:
-            v = obj.get(key)
-            return float("nan") if v is None else float(v)
-
-        return cls(finger=obj.get("finger"), hand_body=obj["hand_body"],
-                   pos_world_m=arr("pos_world_m"), normal_world=arr("normal_world"),
-                   pos_object_m=arr("pos_object_m"), normal_object=arr("normal_object"),
-                   pos_hand_body_m=arr("pos_hand_body_m"),
-                   normal_hand_body=arr("normal_hand_body"), dist_m=num("dist_m"),
-                   force_n=num("force_n"))
-
-
-#: Marker colours: thumb red, then the other fingers, grey for palm/link contacts.
-_FINGER_COLORS = (color(0.9, 0.2, 0.2), color(0.2, 0.7, 0.2), color(0.2, 0.4, 0.9),
-                  color(0.9, 0.7, 0.1), color(0.7, 0.3, 0.8), color(0.2, 0.8, 0.8))
-_OTHER_COLOR = color(0.6, 0.6, 0.6)
-
-
-def contact_entity(contacts: Sequence[ContactRecord], t_ns: int, *,
-                   fingers: Sequence[str] = (), sphere_diameter_m: float = 0.006,
-                   arrow_m_per_n: float = 0.01, arrow_length_m: float = 0.03) -> dict[str, Any]:
-    """The ``contacts`` SceneEntity (world frame): a sphere per contact coloured by finger (order
-    of ``fingers``; grey when not a fingertip) and an arrow along the normal, into the object,
-    ``arrow_m_per_n`` metres per newton of normal force (``arrow_length_m`` when the force is
-    unknown)."""
-    index = {f: i for i, f in enumerate(fingers)}
-    spheres, arrows = [], []
-    for c in contacts:
-        i = index.get(c.finger) if c.finger is not None else None
-        rgba = _FINGER_COLORS[i % len(_FINGER_COLORS)] if i is not None else _OTHER_COLOR
-        if not np.isfinite(np.asarray(c.pos_world_m, dtype=float)).all():
-            continue
-        spheres.append(sphere(c.pos_world_m, sphere_diameter_m, rgba))
-        length = (min(max(arrow_m_per_n * c.force_n, 0.005), 0.1) if np.isfinite(c.force_n)
-                  else arrow_length_m)
-        a = arrow(c.pos_world_m, c.normal_world, length, rgba)
-        if a is not None:
-            arrows.append(a)
-    return scene_entity("contacts", t_ns, spheres=spheres, arrows=arrows)
-
-
-#: Bones of the OpenXR hand skeleton (joint index pairs) for :func:`hand_skeleton_entity`.
-OPENXR_BONES: tuple[tuple[int, int], ...] = tuple(
-    (hand_messages.JOINT_INDEX[a], hand_messages.JOINT_INDEX[b])
-    for finger, chain in (("thumb", ("metacarpal", "proximal", "distal", "tip")),
-                          ("index", ("metacarpal", "proximal", "intermediate", "distal", "tip")),
-                          ("middle", ("metacarpal", "proximal", "intermediate", "distal", "tip")),
-                          ("ring", ("metacarpal", "proximal", "intermediate", "distal", "tip")),
-                          ("little", ("metacarpal", "proximal", "intermediate", "distal", "tip")))
-    for a, b in zip(("wrist", *(f"{finger}_{j}" for j in chain[:-1])),
-                    (f"{finger}_{j}" for j in chain), strict=True)
-)
-
-
-def hand_skeleton_entity(hand: hand_messages.HandState, t_ns: int, *, entity_id: str,
-                         rgba: dict[str, float] | None = None) -> dict[str, Any]:
-    """The operator's tracked hand (raw input) as spheres at the valid joints (their radius)
-    and lines along the bones, world frame."""
-    rgba = rgba or color(1.0, 0.8, 0.6, 0.8)
-    valid = np.asarray(hand.valid, dtype=bool)
-    spheres = [sphere(hand.positions[i], 2.0 * float(hand.radii[i]), rgba)
-               for i in np.flatnonzero(valid)]
-    pts = [hand.positions[k] for a, b in OPENXR_BONES if valid[a] and valid[b] for k in (a, b)]
-    lines = [line_list(np.array(pts), rgba)] if pts else []
-    return scene_entity(entity_id, t_ns, spheres=spheres, lines=lines)

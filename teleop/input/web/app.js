@@ -2,7 +2,7 @@
 //
 // Why one small module without a framework: it runs in the Quest Browser (and in headless
 // Chromium with IWER for the tests); everything it needs is WebXR, WebGL2 and a WebSocket.
-// The binary hand-frame layout is documented in teleop/input/web_ingest.py (magic "DXW1").
+// The binary hand-frame layout is documented in teleop/input/web_protocol.py (magic "DXW1").
 
 const JOINTS = [
   'wrist',

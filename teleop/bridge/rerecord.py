@@ -7,7 +7,8 @@ and demo extraction needs both. Re-recording replays the ``/hands`` bytes over z
 in order with a fixed number of physics steps, so the output depends only on the input) and
 records what the bridge does, exactly as a live session would be recorded. Operator
 ``grasp_mark`` events of the source are re-issued to the bridge at the same input frame, so
-explicit marks survive.
+explicit marks survive. It lives with the bridge it drives: :mod:`teleop.record` (sessions,
+replay, demos) stays below the bridge and never runs one.
 """
 
 from __future__ import annotations
@@ -24,7 +25,8 @@ from sim.errors import DexaugError
 from sim.io import atomic_path
 from sim.transforms import quat_to_mat
 from teleop import keys as zkeys
-from teleop.bridge.bridge import Bridge, BridgeConfig, load_bridge_config
+from teleop.bridge.bridge import Bridge
+from teleop.bridge.config import BridgeConfig, load_bridge_config
 from teleop.record.replay import hands_publisher, play
 from teleop.record.schemas import TOPIC_HANDS
 from teleop.record.session import Session, open_session

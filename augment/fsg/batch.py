@@ -1,0 +1,152 @@
+"""One FSG worker's sampler: its state (RNG, counts, accepted grasps) and one batch of palm pose
+candidates through steps 1–8 of the :mod:`augment.fsg` overview.
+
+The steps themselves live in their modules (:mod:`~augment.fsg.candidates`,
+:mod:`~augment.fsg.matching`, :mod:`~augment.fsg.contacts`, :mod:`~augment.fsg.checks`); this
+module only strings them together in the order that fixes the RNG draws (step 1's five draws,
+then one permutation per further finger), so that a seed gives the same grasps.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from augment.fsg.candidates import Candidates, contact_faces_below_table, first_finger, palm_candidates
+from augment.fsg.checks import Dedup, PenetrationCheck, grasp_quality, link_penetrates
+from augment.fsg.contacts import collect_contacts
+from augment.fsg.matching import FingerIndex, match_fingers
+from augment.fsg.params import FsgParams
+from augment.fsg.result import FsgGrasp
+from sim.grasp import Grasp
+from sim.transforms import mat_to_quat
+
+if TYPE_CHECKING:
+    from augment.autows.cloud import WorkspaceCloud
+    from augment.object_cloud import ObjectCloud
+
+__all__ = ["Sampler", "SamplerSetup"]
+
+
+@dataclass(frozen=True)
+class SamplerSetup:
+    """Everything a worker needs, as plain picklable data (no MuJoCo objects).
+
+    Attributes:
+        hand: hand name.
+        cloud: the object cloud; part_idx: indices of the sampled points (``cloud_part`` or
+            all of ``cloud_full``).
+        workspace: the hand's workspace clouds.
+        fingers: active fingers at the start, priority order.
+        nq: length of the hand's joint vector; finger_qadr: finger → its joints' indices in it.
+        palm_center, palm_half: the palm box in ``frame_palm``, metres.
+        table: table mode; finger_iteration: drop fingers on a poor round.
+        link_penetration: the paper's eq. 3 on the link skeletons (step 6).
+        exact_penetration: the caller's exact check that ends step 6, or ``None``.
+        params: sampler parameters.
+    """
+
+    hand: str
+    cloud: ObjectCloud
+    workspace: WorkspaceCloud
+    part_idx: np.ndarray
+    fingers: tuple[str, ...]
+    nq: int
+    finger_qadr: dict[str, np.ndarray]
+    palm_center: np.ndarray
+    palm_half: np.ndarray
+    table: bool
+    finger_iteration: bool
+    link_penetration: bool
+    exact_penetration: PenetrationCheck | None
+    params: FsgParams
+
+
+class Sampler:
+    """One worker: ``batch`` adds the grasps of a batch to ``accepted`` and counts what
+    happened to every candidate in ``stats``."""
+
+    def __init__(self, setup: SamplerSetup, seed: int, worker: int = 0) -> None:
+        self.setup = setup
+        self.params = setup.params
+        self.rng = np.random.default_rng(seed)
+        self.worker = worker
+        self.points = np.asarray(setup.cloud.points)
+        self.normals = np.asarray(setup.cloud.normals)
+        self.obj_tree = cKDTree(self.points)
+        self.clouds = {f: setup.workspace.finger(f) for f in setup.fingers}
+        self.index = FingerIndex.build(self.clouds, self.params)
+        self.stats: dict[str, int] = {k: 0 for k in (
+            "candidates", "palm", "table", "no_match", "contacts", "depth", "link", "epsilon",
+            "duplicate", "penetration", "accepted")}
+        self.accepted: list[FsgGrasp] = []
+        self.dedup = Dedup(setup.nq, self.params)
+
+    def batch(self, fingers: tuple[str, ...], n_outer: int) -> None:
+        """``n_outer`` outer iterations (× ``inner`` candidates) with ``fingers``."""
+        s = self.setup
+        first = first_finger(fingers, self.clouds)
+        cands = palm_candidates(self.rng, self.points, self.normals, s.part_idx,
+                                self.clouds[first], n_outer, palm_center=s.palm_center,
+                                palm_half=s.palm_half,
+                                table_z_m=s.cloud.z_min_m if s.table else None,
+                                params=self.params, stats=self.stats)
+        if cands is None:
+            return
+        s_idx, chosen = match_fingers(self.rng, fingers, first, cands, s.part_idx, self.normals,
+                                      self.clouds, self.index, self.params, self.stats)
+        if not len(s_idx):
+            return
+        self._finish(fingers, s_idx, cands, chosen)
+
+    def _finish(self, fingers: tuple[str, ...], s_idx: np.ndarray, cands: Candidates,
+                chosen: dict[str, np.ndarray]) -> None:
+        """Steps 5–8 on the matched candidates ``s_idx``, in order."""
+        p, s = self.params, self.setup
+        for c in s_idx:
+            r, t = cands.rot[c], cands.trans[c]
+            picks = [int(chosen[f][c]) for f in fingers]
+            faces = [(self.clouds[f], k) for f, k in zip(fingers, picks, strict=True)]
+            reason, idx, finger_i = collect_contacts(faces, cands.full[c], self.normals @ r.T, p)
+            if reason is not None:
+                self.stats[reason] += 1
+                continue
+            if s.table and contact_faces_below_table(faces, r, t, s.cloud.z_min_m,
+                                                     p.table_clearance_m):
+                self.stats["table"] += 1
+                continue
+            if s.link_penetration and link_penetrates(
+                    [fc.skeleton[k] for fc, k in faces], r, t, self.obj_tree, self.points,
+                    self.normals, p.link_clearance_m):
+                self.stats["link"] += 1
+                continue
+            cpts, cnrm = self.points[idx], self.normals[idx]
+            m = grasp_quality(cpts, cnrm, s.cloud, p)
+            if not m.epsilon > p.min_epsilon:
+                self.stats["epsilon"] += 1
+                continue
+            # palm pose in the object frame: inverse of object → palm
+            palm_rot = r.T
+            palm_pos = -palm_rot @ t
+            quat = mat_to_quat(palm_rot)
+            q = np.zeros(s.nq)
+            for f, k in zip(fingers, picks, strict=True):
+                q[s.finger_qadr[f]] = self.clouds[f].joints[k]
+            if self.dedup.is_duplicate(palm_pos, quat, q):
+                self.stats["duplicate"] += 1
+                continue
+            grasp = Grasp(palm_pos, quat, q)
+            if s.exact_penetration is not None and s.exact_penetration(grasp):
+                self.stats["penetration"] += 1
+                continue
+            self.dedup.add(palm_pos, quat, q)
+            self.stats["accepted"] += 1
+            self.accepted.append(FsgGrasp(
+                grasp=grasp, fingers=fingers, contact_points=cpts.copy(),
+                contact_normals=cnrm.copy(), contact_finger=finger_i,
+                ws_index=tuple(picks),
+                face_index=tuple(int(fc.face_index[k]) for fc, k in faces),
+                epsilon=float(m.epsilon), volume=float(m.volume), worker=self.worker))

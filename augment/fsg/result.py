@@ -1,0 +1,67 @@
+"""What FSG returns: one :class:`FsgGrasp` per generated grasp, gathered in an :class:`FsgResult`
+with the run's counts (where candidates were rejected, which finger sets were tried).
+
+Plain data, so that the dataset writer and the pipeline depend on these types only, not on the
+sampler.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sim.grasp import Grasp
+
+__all__ = ["FsgGrasp", "FsgResult"]
+
+
+@dataclass(frozen=True, eq=False)
+class FsgGrasp:
+    """One generated grasp.
+
+    Attributes:
+        grasp: palm pose (frame_palm in the object frame, metres, wxyz) and full joint vector.
+        fingers: fingers used, priority order.
+        contact_points: (M,3) contacts on the object, object frame, metres.
+        contact_normals: (M,3) the object's OUTWARD unit normals there (the GWS uses their
+            negatives, the force directions).
+        contact_finger: (M,) index into ``fingers`` of the finger touching each contact.
+        ws_index: per used finger, the index of its workspace cloud point.
+        face_index: per used finger, which contact face of the fingertip (into the finger
+            cloud's ``tip_*`` arrays).
+        epsilon, volume: GWS Q1 and hull volume of the contacts.
+        worker: worker that generated it.
+    """
+
+    grasp: Grasp
+    fingers: tuple[str, ...]
+    contact_points: np.ndarray
+    contact_normals: np.ndarray
+    contact_finger: np.ndarray
+    ws_index: tuple[int, ...]
+    face_index: tuple[int, ...]
+    epsilon: float
+    volume: float
+    worker: int = 0
+
+
+@dataclass
+class FsgResult:
+    """Grasps (sorted by ε, best first) plus what happened: ``requested`` vs ``len(grasps)``
+    (``shortfall``), ``stopped`` ("done", "time budget"), wall time, and counts summed over
+    workers: candidates and where they were rejected (palm, table, no_match, contacts, depth,
+    link, epsilon, duplicate, penetration), accepted, and per finger the k-d tree pairs with
+    opposed normals (``pairs_<finger>``) and those left after eq. 2 and the crossing rule
+    (``usable_<finger>``). ``finger_sets`` lists the finger sets finger iteration went through."""
+
+    grasps: list[FsgGrasp]
+    requested: int
+    stopped: str
+    elapsed_s: float
+    stats: dict[str, int] = field(default_factory=dict)
+    finger_sets: list[tuple[str, ...]] = field(default_factory=list)
+
+    @property
+    def shortfall(self) -> int:
+        return max(self.requested - len(self.grasps), 0)

@@ -1,0 +1,203 @@
+"""FSG's entry point, :func:`generate`: input checks, worker processes, finger iteration and the
+merge of the workers' grasps (the :mod:`augment.fsg` overview, last two paragraphs).
+
+Finger iteration (:func:`run_rounds`): a round is ``outer`` outer iterations; when a round
+yields fewer than ``min_valid`` grasps with the current fingers, the least important finger is
+dropped (down to ``min_fingers``, at least 2), and generation goes on within the same call until
+``n`` grasps or the time budget. Unused finger joints stay 0.
+
+Parallelism: ``workers`` processes, worker k seeded with ``seed + k`` and asked for its share of
+``n``; results are merged in worker order and de-duplicated again (:func:`merge`), so the output
+is deterministic for a seed and worker count unless the time budget cuts a run short. The
+worker processes are kept between calls (:func:`sim.pools.persistent_pool`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+import time
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from augment.fsg.batch import Sampler, SamplerSetup
+from augment.fsg.checks import Dedup, PenetrationCheck
+from augment.fsg.params import FsgError, FsgParams, load_fsg_params
+from augment.fsg.result import FsgGrasp, FsgResult
+from sim.pools import persistent_pool
+
+if TYPE_CHECKING:
+    from augment.autows.cloud import WorkspaceCloud
+    from augment.object_cloud import ObjectCloud
+    from sim.hand.model import Hand
+    from sim.world.objects import ObjectAsset
+
+__all__ = ["generate", "merge", "run_rounds"]
+
+log = logging.getLogger(__name__)
+
+#: what one worker returns: accepted grasps, counts, why it stopped, finger sets tried
+WorkerOutput = tuple[list[FsgGrasp], dict[str, int], str, list[tuple[str, ...]]]
+
+
+def run_rounds(sampler: Sampler, n: int, deadline: float) -> tuple[str, list[tuple[str, ...]]]:
+    """Batches of ``sampler`` in rounds of ``outer`` outer iterations, with finger iteration,
+    until it holds ``n`` grasps ("done") or ``time.monotonic()`` passes ``deadline``
+    ("time budget"). Returns the reason and the finger sets used, in order."""
+    fingers = sampler.setup.fingers
+    sets = [fingers]
+    p = sampler.params
+    while True:
+        round_start = len(sampler.accepted)
+        done_outer = 0
+        while done_outer < p.outer:
+            if len(sampler.accepted) >= n:
+                return "done", sets
+            if time.monotonic() > deadline:
+                return "time budget", sets
+            b = min(p.outer_batch, p.outer - done_outer)
+            sampler.batch(fingers, b)
+            done_outer += b
+        if len(sampler.accepted) >= n:
+            return "done", sets
+        if (sampler.setup.finger_iteration and len(sampler.accepted) - round_start < p.min_valid
+                and len(fingers) > p.min_fingers):
+            fingers = fingers[:-1]
+            sets.append(fingers)
+            log.info("worker %d: %d grasps in a round; dropping finger, now %s", sampler.worker,
+                     len(sampler.accepted) - round_start, ", ".join(fingers))
+
+
+def _worker_run(setup: SamplerSetup, seed: int, worker: int, n: int, budget_s: float
+                ) -> WorkerOutput:
+    sampler = Sampler(setup, seed, worker)
+    stopped, sets = run_rounds(sampler, n, time.monotonic() + budget_s)
+    return sampler.accepted, sampler.stats, stopped, sets
+
+
+def merge(outs: Sequence[WorkerOutput], nq: int, params: FsgParams
+          ) -> tuple[list[FsgGrasp], dict[str, int], str, list[tuple[str, ...]]]:
+    """The workers' outputs, in worker order, as one: grasps de-duplicated across workers
+    (step 8 again; not yet sorted or cut to ``n``), counts summed, the finger sets in first-seen
+    order, and "done" unless a worker stopped otherwise."""
+    dedup = Dedup(nq, params)
+    grasps: list[FsgGrasp] = []
+    stats: dict[str, int] = {}
+    sets: list[tuple[str, ...]] = []
+    stopped = "done"
+    for accepted, st, stop, fs in outs:
+        for k, v in st.items():
+            stats[k] = stats.get(k, 0) + v
+        for s in fs:
+            if s not in sets:
+                sets.append(s)
+        if stop != "done":
+            stopped = stop
+        for g in accepted:
+            if not dedup.is_duplicate(g.grasp.palm_pos, g.grasp.palm_quat_wxyz, g.grasp.joints):
+                dedup.add(g.grasp.palm_pos, g.grasp.palm_quat_wxyz, g.grasp.joints)
+                grasps.append(g)
+    return grasps, stats, stopped, sets
+
+
+def generate(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: WorkspaceCloud, *,
+             n: int = 10, fingers: int | None = None,
+             finger_names: Sequence[str] | None = None, table: bool = False,
+             use_affordance: bool = True, finger_iteration: bool = True,
+             link_penetration: bool = False,
+             exact_penetration: PenetrationCheck | None = None, seed: int = 0,
+             time_budget_s: float = 60.0, workers: int = 1,
+             params: FsgParams | None = None) -> FsgResult:
+    """Generate up to ``n`` grasps of ``obj`` with ``hand`` from ``workspace`` (the
+    :mod:`augment.fsg` overview).
+
+    Args:
+        hand: the hand (for the joint vector layout and the palm box).
+        obj: the object, or its prepared :class:`~augment.object_cloud.ObjectCloud`.
+        workspace: AutoWS clouds of this hand.
+        n: grasps wanted.
+        fingers: use at most this many fingers (the most important ones); default all.
+        finger_names: use only these fingers (kept in priority order): with a demonstration,
+            the fingers that touched in it — the paper's augmented grasps "involve only those
+            fingers", and the others' demo-centred clouds rarely reach the object.
+        table: reject palms (and fingertips' faces) below the table plane.
+        use_affordance: ``True`` samples ``cloud_part`` (affordance annotation, else the
+            curvature filter; the paper's "+Aff"); ``False`` samples the whole ``cloud_full``
+            (the paper's plain "FSG").
+        finger_iteration: drop fingers when a round yields fewer than ``min_valid`` grasps.
+        link_penetration: the paper's eq. 3 check of the link skeletons (step 6).
+        exact_penetration: the exact check in the validator's scene that ends step 6 (given by
+            the caller; ``None``: the point-cloud checks only).
+        seed: worker k uses ``seed + k``.
+        time_budget_s: wall-clock limit; on expiry the grasps found so far are returned and the
+            shortfall is logged (``FsgResult.stopped == "time budget"``).
+        workers: processes (1: in this process).
+        params: sampler parameters (default ``[fsg]`` of ``configs/augment.toml``).
+
+    Raises:
+        FsgError: a workspace cloud of another hand, or bad options.
+    """
+    from augment.object_cloud import ObjectCloud, object_cloud
+
+    t0 = time.monotonic()
+    params = params or load_fsg_params()
+    if n < 1 or workers < 1 or not time_budget_s > 0:
+        raise FsgError(f"need n >= 1, workers >= 1 and time_budget_s > 0; got n={n}, "
+                       f"workers={workers}, time_budget_s={time_budget_s}")
+    if workspace.hand != hand.name:
+        raise FsgError(f"workspace cloud is for hand {workspace.hand!r}, not {hand.name!r}")
+    for fc in workspace.fingers:
+        missing = [j for j in fc.joint_names if j not in hand.joint_names]
+        if missing or fc.name not in hand.finger_names:
+            raise FsgError(f"workspace finger {fc.name!r} (joints {missing or fc.joint_names}) "
+                           f"does not belong to hand {hand.name!r}")
+    cloud = obj if isinstance(obj, ObjectCloud) else object_cloud(obj)
+    part_idx = (np.flatnonzero(cloud.part_mask) if use_affordance
+                else np.arange(len(cloud.points)))
+    active = workspace.finger_names
+    if finger_names is not None:
+        unknown = sorted(set(finger_names) - set(active))
+        if unknown:
+            raise FsgError(f"finger_names {unknown} are not fingers of the workspace "
+                           f"{list(active)}")
+        active = tuple(f for f in active if f in set(finger_names))
+    if fingers is not None:
+        if fingers < 1:
+            raise FsgError(f"fingers must be >= 1, got {fingers}")
+        active = active[:fingers]
+    if len(active) < 2:
+        raise FsgError(f"FSG needs at least 2 fingers, got {list(active)}")
+    palm = hand.config.palm
+    setup = SamplerSetup(
+        hand=hand.name, cloud=cloud, workspace=workspace, part_idx=part_idx,
+        fingers=tuple(active),
+        nq=hand.nq, finger_qadr={f: np.asarray(hand.finger_qadr[f]) for f in active},
+        palm_center=np.asarray(palm.box_center, float),
+        palm_half=np.asarray(palm.box_half_extents, float), table=table,
+        finger_iteration=finger_iteration, link_penetration=link_penetration,
+        exact_penetration=exact_penetration,
+        params=dataclasses.replace(params, min_fingers=max(params.min_fingers, 2)))
+    budget = time_budget_s - (time.monotonic() - t0)
+    if workers == 1:
+        outs = [_worker_run(setup, seed, 0, n, budget)]
+    else:
+        share = math.ceil(n / workers)
+        pool = persistent_pool(workers, preload=(__name__,))
+        futs = [pool.submit(_worker_run, setup, seed + k, k, share, budget)
+                for k in range(workers)]
+        outs = [f.result() for f in futs]
+    grasps, stats, stopped, sets = merge(outs, hand.nq, setup.params)
+    grasps.sort(key=lambda g: -g.epsilon)
+    grasps = grasps[:n]
+    result = FsgResult(grasps=grasps, requested=n, stopped=stopped,
+                       elapsed_s=time.monotonic() - t0, stats=stats, finger_sets=sets)
+    if result.shortfall:
+        log.warning("FSG on %s: %d of %d grasps (shortfall %d, stopped: %s) after %.1f s; "
+                    "rejections %s", cloud.name, len(grasps), n, result.shortfall, stopped,
+                    result.elapsed_s, stats)
+    else:
+        log.info("FSG on %s: %d grasps in %.2f s", cloud.name, len(grasps), result.elapsed_s)
+    return result

@@ -1,0 +1,216 @@
+"""Subcommands of the teleoperation half: ``retarget``, ``synth``, ``bridge``, ``replay``.
+
+Each parses its arguments, calls ``teleop``, and reports; the bridge can hand every finished
+recording to ``dexaug augment`` in a background process.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+from rich.console import Console
+from rich.progress import Progress
+from rich.table import Table
+
+from dexaug.commands.options import hand_arg
+from dexaug.commands.registry import command
+
+
+def _retarget_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("file", type=Path, help="an MCAP session recorded by dexaug, or an IWER "
+                   "capture module (.js) recorded in a WebXR page")
+    hand_arg(p)
+    p.add_argument("--out", type=Path, help="save the retargeted trajectory (.npz)")
+
+
+@command("retarget", _retarget_args)
+def retarget(args: argparse.Namespace, console: Console) -> int:
+    """Retarget a recorded hand-tracking stream offline and report fingertip errors.
+
+    Runs the same mink retargeter as the bridge over every frame (operator scale calibrated
+    from the recording) and prints per-finger fingertip error (median, p95, max) and the
+    per-frame solve time.
+    """
+    from sim.hand.model import Hand
+    from sim.io import atomic_path
+    from teleop.retarget.retargeter import Retargeter
+    from teleop.retarget.trace import retarget_frames, summarise_errors
+
+    if args.file.suffix == ".js":
+        from teleop.input.iwer import iwer_hand_frames, load_iwer_capture
+
+        frames = iwer_hand_frames(load_iwer_capture(args.file))
+    else:
+        from teleop.record.session import open_session
+
+        frames = [frame for _, frame in open_session(args.file).hands()]
+    hand = Hand.load(args.hand)
+    retargeter = Retargeter(hand)  # which operator hand it follows: configs/teleop.toml
+    retargeter.calibrate_scale(frames)
+    with Progress(console=console, transient=True) as progress:
+        progress.add_task(f"retargeting {len(frames)} frames", total=None)
+        trace = retarget_frames(retargeter, frames)
+    summary = summarise_errors(trace)
+    table = Table(title=f"retargeting {args.file.name} → {hand.name} (scale "
+                  f"{retargeter.scale:.3f})")
+    for col in ("finger", "median (mm)", "p95 (mm)", "max (mm)"):
+        table.add_column(col, justify="right")
+    for finger, stats in summary["fingers"].items():
+        table.add_row(finger, *(f"{stats[k] * 1e3:.1f}" for k in ("median_m", "p95_m", "max_m")))
+    console.print(table)
+    console.print(f"{summary['frames']} frames, {summary['held']} held (no usable hand); solve "
+                  f"{summary['step_median_s'] * 1e3:.2f} ms median, "
+                  f"{summary['step_p99_s'] * 1e3:.2f} ms p99")
+    if args.out:
+        with atomic_path(args.out) as tmp, tmp.open("wb") as f:
+            np.savez(f, **trace.as_dict())
+        console.print(f"wrote {args.out}")
+    return 0
+
+
+def _synth_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--object", default="005_tomato_soup_can", help="object to grasp (YCB id or "
+                   "primitive)")
+    hand_arg(p, "robot hand config the episode targets")
+    p.add_argument("--grasp", help="reference grasp to imitate (default: the hand's reference "
+                   "grasp of the object, else a generic side grasp)")
+    p.add_argument("--seed", type=int, default=0, help="noise/dropout seed (deterministic)")
+    p.add_argument("--out", type=Path, required=True, help="MCAP session file to write")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing file")
+
+
+@command("synth", _synth_args)
+def synth(args: argparse.Namespace, console: Console) -> int:
+    """Generate a synthetic operator's hand-tracking session (approach → grasp → lift → release).
+
+    A human-proportioned OpenXR hand, with tracking noise, timestamp jitter and dropouts, whose
+    retargeted robot hand lands on a reference grasp of the object. Writes /hands and a
+    grasp_mark event to an MCAP session that replays like a real recording.
+    """
+    from teleop.synthetic.synthesize import synthesize
+    from teleop.synthetic.writer import write_session
+
+    episode = synthesize(args.object, hand=args.hand, seed=args.seed, grasp_name=args.grasp)
+    path = write_session(episode, args.out, overwrite=args.overwrite)
+    tracked = int(episode.tracked.sum())
+    console.print(f"wrote {path}: {len(episode.frames)} frames over "
+                  f"{episode.frames[-1].device_time_s - episode.frames[0].device_time_s:.1f} s "
+                  f"({tracked} with a tracked hand), grasp mark at {episode.grasp_time_s:.2f} s, "
+                  f"imitating {episode.reference_grasp or 'a generic side grasp'}", soft_wrap=True)
+    return 0
+
+
+def _bridge_args(p: argparse.ArgumentParser) -> None:
+    hand_arg(p)
+    p.add_argument("--object", help="object on the table (default: configs/teleop.toml [bridge])")
+    p.add_argument("--rig", default="local", help="zenoh key prefix dexaug/<rig>/…")
+    p.add_argument("--listen", type=int, default=7447, help="TCP port to listen on (127.0.0.1)")
+    p.add_argument("--connect", type=int, nargs="*", default=[], help="peer ports to connect to")
+    p.add_argument("--duration", type=float, help="stop after this many seconds")
+    p.add_argument("--record", type=Path, help="start recording to this MCAP file at once")
+    p.add_argument("--no-view", action="store_true", help="do not render the /view stream")
+    p.add_argument("--web", action="store_true",
+                   help="also serve the headset page (WebXR) and its WebSocket ingest")
+    p.add_argument("--web-port", type=int, default=8443, help="port of the headset page")
+    p.add_argument("--cert", type=Path,
+                   help="folder for the self-signed certificate (default $DEXAUG_CACHE_DIR/web-cert)")
+    p.add_argument("--http", action="store_true",
+                   help="plain HTTP (only for localhost, e.g. through `adb reverse`)")
+    p.add_argument("--auto-augment", action="store_true",
+                   help="augment each recording as soon as it is stopped (`dexaug augment` in a "
+                   "background process, so the bridge keeps running)")
+    p.add_argument("--augment-out", type=Path, default=Path("datasets"),
+                   help="--auto-augment: output folder (default ./datasets)")
+
+
+@command("bridge", _bridge_args)
+def bridge(args: argparse.Namespace, console: Console) -> int:
+    """Run the teleoperation bridge: zenoh /hands in → retarget → MuJoCo → /state, /view out.
+
+    Subscribes dexaug/<rig>/hands (live ingest or `dexaug replay`), drives a floating hand and an
+    object on a table, publishes dexaug/<rig>/state and a JPEG head-camera stream on
+    dexaug/<rig>/view, and answers dexaug/<rig>/control/** (start_recording, stop_recording,
+    choose_object, reset_object, mark_grasp, status). Ctrl-C stops it.
+    """
+    from teleop.bridge.main import bridge_main
+
+    console.print(f"bridge on rig {args.rig!r}, listening on tcp/127.0.0.1:{args.listen}")
+    ingest, extra_ports = None, ()
+    if args.web:
+        from teleop.input.tls import local_addresses
+        from teleop.input.web_ingest import WebIngest, WebIngestConfig
+        from teleop.keys import free_tcp_port
+
+        zport = free_tcp_port()  # the ingest's own zenoh peer; the bridge connects to it
+        ingest = WebIngest(args.rig, WebIngestConfig(port=args.web_port, tls=not args.http,
+                                                     cert_dir=args.cert), listen_port=zport)
+        url = ingest.start()
+        extra_ports = (zport,)
+        scheme = url.split(":", 1)[0]
+        lan = [a for a in local_addresses() if a != "127.0.0.1"]
+        console.print(f"headset page: {url}" + "".join(f"  or  {scheme}://{a}:{ingest.port}/"
+                                                        for a in lan), soft_wrap=True)
+    hook = _auto_augment(args.augment_out, console) if args.auto_augment else None
+    try:
+        return bridge_main(args.hand, args.object, args.rig, listen_port=args.listen,
+                           connect_ports=tuple(args.connect) + extra_ports,
+                           duration_s=args.duration, record=args.record,
+                           view=False if args.no_view else None, on_recording_closed=hook)
+    finally:
+        if ingest is not None:
+            ingest.close()
+
+
+def _auto_augment(out: Path, console: Console) -> Callable[[Path], None]:
+    """A recording-closed hook that starts ``dexaug augment PATH --out OUT`` in its own process
+    (its log goes to ``OUT/<session>.augment.log``), so augmentation never stalls the bridge."""
+    import subprocess
+    import sys
+
+    def start(path: Path) -> None:
+        out.mkdir(parents=True, exist_ok=True)
+        log_path = out / f"{path.stem}.augment.log"
+        with open(log_path, "ab") as log_file:
+            subprocess.Popen([sys.executable, "-m", "dexaug", "augment", str(path), "--out",
+                              str(out)], stdout=log_file, stderr=subprocess.STDOUT,
+                             stdin=subprocess.DEVNULL)
+        console.print(f"augmenting {path} in the background (log: {log_path})")
+
+    return start
+
+
+def _replay_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("file", type=Path, help="MCAP session to replay")
+    p.add_argument("--rate", default="1.0", help="playback speed factor, or 'max'")
+    p.add_argument("--rig", default="local", help="zenoh key prefix dexaug/<rig>/…")
+    p.add_argument("--connect", type=int, nargs="+", default=[7447],
+                   help="bridge port(s) to connect to on 127.0.0.1")
+
+
+@command("replay", _replay_args)
+def replay(args: argparse.Namespace, console: Console) -> int:
+    """Publish a recorded session's hand tracking back onto zenoh (dexaug/<rig>/hands).
+
+    With original timing (--rate 1.0), scaled, or as fast as possible (--rate max); the bridge
+    cannot tell a replay from a live headset.
+    """
+    from sim.errors import ConfigError
+    from teleop.keys import free_tcp_port, open_session
+    from teleop.record.replay import replay as replay_session
+
+    rate: float | str = args.rate
+    if args.rate != "max":
+        try:
+            rate = float(args.rate)
+        except ValueError:
+            raise ConfigError(f"--rate: expected a number or 'max', got {args.rate!r}") from None
+    session = open_session(free_tcp_port(), tuple(args.connect))
+    try:
+        sent = replay_session(args.file, session, args.rig, rate=rate)
+    finally:
+        session.close()
+    console.print(f"replayed {sent} hand-tracking messages from {args.file}")
+    return 0

@@ -1,0 +1,58 @@
+"""What a validation returns: the verdict, why it failed, and what was measured on the way.
+
+Kept apart from the validator so that code that only stores or reports results (the dataset,
+the batch runner, the dashboard) needs no simulation. Units: metres, radians.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from enum import StrEnum
+
+import numpy as np
+
+__all__ = ["Failure", "PhaseResult", "ValidationResult"]
+
+
+class Failure(StrEnum):
+    """Why a grasp failed, checked in this order."""
+
+    PENETRATION = "penetration"        # hand–object penetration above the limit before simulating
+    NO_CONTACT = "no_contact"          # no hand body near the object: a grasp on air
+    LOST_CONTACT = "lost_contact"      # fingers closed but nothing touches the object
+    SLIPPED = "slipped"                # object moved/rotated past the limits while lifted or pushed
+    STUCK = "stuck"                    # lift-drop: object stayed in the opened hand (interpenetration)
+
+
+@dataclass
+class PhaseResult:
+    passed: bool
+    displacement_m: float
+    rotation_rad: float
+
+
+@dataclass
+class ValidationResult:
+    """Outcome of one grasp under one protocol. Metrics are NaN where the run stopped before
+    they could be measured (e.g. penetration rejects before simulating)."""
+
+    protocol: str
+    passed: bool
+    failure: str | None
+    penetration_m: float
+    n_contacts: int = 0
+    epsilon: float = float("nan")
+    volume: float = float("nan")
+    displacement_m: float = float("nan")
+    rotation_rad: float = float("nan")
+    phases: dict[str, PhaseResult] = field(default_factory=dict)
+    contact_pos_obj: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    contact_normal_obj: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+
+    def summary(self) -> dict[str, object]:
+        """Flat, JSON-friendly view (no arrays) for tables and logs."""
+        out = asdict(self)
+        out.pop("contact_pos_obj")
+        out.pop("contact_normal_obj")
+        out["phases"] = {k: asdict(v) for k, v in self.phases.items()}
+        return out

@@ -1,0 +1,83 @@
+"""The bridge's settings: ``configs/teleop.toml`` ``[bridge]`` as a :class:`BridgeConfig`.
+
+Why apart from the loop: rerecording, benchmarks and tests build a config (or change one field
+of it with :func:`dataclasses.replace`) before any bridge exists. Units are in the names
+(``_hz``, ``_m``, ``_deg``, ``_s``); ``recordings_dir`` is relative to the repository root.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from sim.config import Section, load_toml
+from teleop.retarget.config import TELEOP_CONFIG
+
+__all__ = ["BridgeConfig", "load_bridge_config"]
+
+Array = np.ndarray
+
+_BRIDGE_KEYS = {"state_rate_hz", "view_enabled", "view_rate_hz", "view_max_duty", "view_width",
+                "view_height",
+                "jpeg_quality", "world_offset_m", "object", "object_pos_m", "object_yaw_deg",
+                "table", "timestep_s", "max_catchup_steps", "steps_per_frame", "recordings_dir",
+                "deterministic"}
+
+
+@dataclass
+class BridgeConfig:
+    """``configs/teleop.toml`` ``[bridge]``; see the file for what each key does."""
+
+    file: Path | None = None
+    state_rate_hz: float = 120.0
+    view_enabled: bool = True
+    view_rate_hz: float = 30.0
+    view_max_duty: float = 0.25
+    view_width: int = 320
+    view_height: int = 240
+    jpeg_quality: int = 80
+    world_offset_m: Array = field(default_factory=lambda: np.array([0.0, 0.0, -0.8]))
+    object: str = "box"
+    object_pos_m: Array = field(default_factory=lambda: np.array([0.35, 0.0]))
+    object_yaw_deg: float = 0.0
+    table: bool = True
+    timestep_s: float = 0.004
+    max_catchup_steps: int = 25
+    steps_per_frame: int = 3
+    recordings_dir: Path = Path("recordings")
+    deterministic: bool = False
+
+
+def load_bridge_config(path: Path | str | None = None) -> BridgeConfig:
+    """Read ``[bridge]`` of ``configs/teleop.toml`` (or ``path``); a missing table gives the
+    defaults. Unknown keys are refused; errors are ConfigError naming the file and key."""
+    path = Path(path) if path is not None else TELEOP_CONFIG
+    root = load_toml(path)
+    sec: Section = root.section("bridge", {})
+    sec.reject_unknown(_BRIDGE_KEYS)
+    d = BridgeConfig()
+    rec_dir = Path(sec.str("recordings_dir", str(d.recordings_dir)))
+    if not rec_dir.is_absolute():
+        rec_dir = path.parent.parent / rec_dir  # relative to the repository root
+    return BridgeConfig(
+        file=path,
+        state_rate_hz=sec.float("state_rate_hz", d.state_rate_hz, min=1e-3),
+        view_enabled=sec.bool("view_enabled", d.view_enabled),
+        view_rate_hz=sec.float("view_rate_hz", d.view_rate_hz, min=1e-3),
+        view_max_duty=sec.float("view_max_duty", d.view_max_duty, min=0.01, max=1.0),
+        view_width=sec.int("view_width", d.view_width, min=16),
+        view_height=sec.int("view_height", d.view_height, min=16),
+        jpeg_quality=sec.int("jpeg_quality", d.jpeg_quality, min=1),
+        world_offset_m=np.array(sec.floats("world_offset_m", 3, list(d.world_offset_m))),
+        object=sec.str("object", d.object),
+        object_pos_m=np.array(sec.floats("object_pos_m", 2, list(d.object_pos_m))),
+        object_yaw_deg=sec.float("object_yaw_deg", d.object_yaw_deg),
+        table=sec.bool("table", d.table),
+        timestep_s=sec.float("timestep_s", d.timestep_s, min=1e-4, max=0.05),
+        max_catchup_steps=sec.int("max_catchup_steps", d.max_catchup_steps, min=1),
+        steps_per_frame=sec.int("steps_per_frame", d.steps_per_frame, min=0),
+        recordings_dir=rec_dir,
+        deterministic=sec.bool("deterministic", d.deterministic),
+    )
