@@ -7,6 +7,7 @@ dexaug's own errors into one clear line (exit status 2) instead of a traceback.
 from __future__ import annotations
 
 import argparse
+import importlib
 import logging
 import signal
 import sys
@@ -17,10 +18,15 @@ from rich.console import Console
 from dexaug.commands.registry import COMMANDS
 from sim.errors import DexaugError
 
+#: the command modules, in the order ``dexaug --help`` lists their subcommands (the data flow:
+#: assets and validation, the demo, capture, augmentation, the dashboard)
+COMMAND_MODULES = tuple(f"dexaug.commands.{m}" for m in (
+    "assets", "validate", "demo", "workspace", "teleop", "augment", "stream", "ui"))
+
 
 def build_parser() -> argparse.ArgumentParser:
-    # importing the command modules registers their subcommands
-    from dexaug.commands import assets, augment, demo, stream, teleop, ui, validate, workspace  # noqa: F401
+    for module in COMMAND_MODULES:   # importing a command module registers its subcommands
+        importlib.import_module(module)
 
     parser = argparse.ArgumentParser(
         prog="dexaug", description="Teleoperation-to-dataset system for dexterous robot hands: "

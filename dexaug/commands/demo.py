@@ -46,7 +46,7 @@ def demo(args: argparse.Namespace, console: Console) -> int:
     from sim.errors import DexaugError
     from sim.paths import REPO_ROOT
     from sim.world.objects import load_object
-    from teleop.record.rerecord import rerecord
+    from teleop.bridge.rerecord import rerecord
     from teleop.record.session import open_session
 
     args.out.mkdir(parents=True, exist_ok=True)
