@@ -71,16 +71,23 @@ def test_normal_variation_marks_cube_edges() -> None:
     assert np.mean(c[to_edge < 0.001] > 0.7) > 0.8  # at the edges: excluded
 
 
-def test_load_fsg_params_defaults_and_errors(tmp_path: Path) -> None:
-    p = load_fsg_params()
+@needs_menagerie
+def test_load_fsg_params_defaults_and_errors(shadow, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    p = load_fsg_params(shadow.config)
     assert (p.outer, p.inner, p.match_distance_m, p.normal_dot) == (200, 15, 0.008, -0.98)
+    # the hand's geometry comes from its folder, not from augment.toml
+    assert (p.fingertip_width_m, p.link_clearance_m) == (shadow.config.fingertip_width_m,
+                                                         shadow.config.link_radius_m)
     bad = tmp_path / "a.toml"
     bad.write_text("[fsg]\nouter = 0\n")
     with pytest.raises(Exception, match="outer"):
-        load_fsg_params(bad)
+        load_fsg_params(shadow.config, bad)
     bad.write_text("[fsg]\nbogus = 1\n")
     with pytest.raises(Exception, match="bogus"):
-        load_fsg_params(bad)
+        load_fsg_params(shadow.config, bad)
+    bad.write_text("[fsg]\nfingertip_width_m = 0.02\n")
+    with pytest.raises(Exception, match=r"fingertip_width_m.*property of the hand"):
+        load_fsg_params(shadow.config, bad)
 
 
 # ------------------------------------------------------------------------------ FSG on the can
@@ -179,7 +186,7 @@ def test_outputs_satisfy_their_claims(shadow, can_setup, can_result) -> None:  #
     res = can_result
     assert len(res.grasps) == 10 and res.shortfall == 0 and res.stopped == "done"
     assert res.elapsed_s < 15
-    _assert_claims(shadow, ws, cloud, res.grasps, FsgParams())
+    _assert_claims(shadow, ws, cloud, res.grasps, FsgParams(fingertip_width_m=0.02, link_clearance_m=0.008))
     eps = [g.epsilon for g in res.grasps]
     assert eps == sorted(eps, reverse=True)
     # with the exact check at the end of step 6, no output penetrates deeper than the validator
@@ -198,7 +205,7 @@ def test_eq3_rejects_skeletons_that_cross_the_object(shadow, can_setup) -> None:
     link skeleton crosses the surface; without it (``link_penetration=False``) some do, so the
     first assertion is not vacuous."""
     _, ws, cloud = can_setup
-    params = dataclasses.replace(load_fsg_params(), link_clearance_m=0.0)
+    params = dataclasses.replace(load_fsg_params(shadow.config), link_clearance_m=0.0)
     kw = dict(n=10, seed=0, time_budget_s=20, params=params)
     with_eq3 = generate(shadow, cloud, ws, link_penetration=True, **kw)
     without = generate(shadow, cloud, ws, link_penetration=False, **kw)
@@ -264,14 +271,14 @@ def test_demo_seeded_run_ends_cleanly(shadow, can_setup, caplog) -> None:  # typ
              "penetration", "accepted")
     assert st["candidates"] > 0 and st["candidates"] == sum(st[k] for k in steps)
     assert st["accepted"] >= len(res.grasps)
-    _assert_claims(shadow, ws, cloud, res.grasps, FsgParams())
+    _assert_claims(shadow, ws, cloud, res.grasps, FsgParams(fingertip_width_m=0.02, link_clearance_m=0.008))
 
 
 @needs_menagerie
 @needs_ycb
 def test_table_mode_keeps_the_palm_above_the_table(shadow, can_setup) -> None:  # type: ignore[no-untyped-def]
     _, ws, cloud = can_setup
-    params = load_fsg_params()
+    params = load_fsg_params(shadow.config)
     res = generate(shadow, cloud, ws, n=3, seed=2, table=True, time_budget_s=10)
     assert res.grasps
     verts = palm_box_vertices(np.asarray(shadow.config.palm.box_center),

@@ -98,7 +98,8 @@ def _toy_workspace(middle_reachable: bool) -> WorkspaceCloud:
     return WorkspaceCloud(hand="toy", fingers=(thumb, index, middle), provenance={})
 
 
-TOY_PARAMS = FsgParams(outer=20, outer_batch=5, inner=6, min_valid=3)
+TOY_PARAMS = FsgParams(fingertip_width_m=0.02, link_clearance_m=0.008, outer=20, outer_batch=5,
+                       inner=6, min_valid=3)
 
 
 # ------------------------------------------------------------------------------ eq. 2
@@ -124,7 +125,7 @@ def _match_one(first_cloud: FingerCloud, other: FingerCloud, obj_pts: np.ndarray
     """match_fingers on one candidate with the identity transform (object frame = palm frame),
     the first finger's contact at the origin."""
     clouds = {first_cloud.name: first_cloud, other.name: other}
-    params = FsgParams()
+    params = FsgParams(fingertip_width_m=0.02, link_clearance_m=0.008)
     cands = Candidates(rot=np.eye(3)[None], trans=np.zeros((1, 3)), full=obj_pts[None],
                        first_ws=np.array([0]), first_pos=np.zeros((1, 3)),
                        first_nrm=np.asarray(first_nrm, float)[None])
@@ -222,7 +223,7 @@ def test_reachable_fingers_are_all_used() -> None:
 
 def test_dedup_thresholds_just_inside_and_just_outside() -> None:
     """Duplicate: palm within 5 mm AND |q·q'| > 1 − 5e-3 AND every joint within 0.1 rad."""
-    p = FsgParams()
+    p = FsgParams(fingertip_width_m=0.02, link_clearance_m=0.008)
     assert (p.dedup_pos_m, p.dedup_quat, p.dedup_joint_rad) == (0.005, 5e-3, 0.1)
     d = Dedup(3, p)
     pos, q = np.array([0.1, 0.0, 0.0]), np.array([0.2, -0.1, 0.3])
@@ -256,7 +257,7 @@ def test_merge_dedups_across_workers_in_worker_order() -> None:
 
     outs = [([grasp(0.0, 0), grasp(0.1, 0)], {"accepted": 2}, "done", [("a", "b")]),
             ([grasp(0.003, 1), grasp(0.2, 1)], {"accepted": 2}, "time budget", [("a", "b")])]
-    grasps, stats, stopped, sets = merge(outs, 2, FsgParams())
+    grasps, stats, stopped, sets = merge(outs, 2, FsgParams(fingertip_width_m=0.02, link_clearance_m=0.008))
     assert [(g.grasp.palm_pos[0], g.worker) for g in grasps] == [(0.0, 0), (0.1, 0), (0.2, 1)]
     assert stats == {"accepted": 4} and stopped == "time budget" and sets == [("a", "b")]
 

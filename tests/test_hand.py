@@ -99,6 +99,7 @@ def test_config_errors_name_the_key(tmp_path: Path) -> None:
         "v_u = [0.0, 0.0, 1.0]": ("v_u = [0.0, -2.0, 0.0]", "parallel"),
         "rh_FFJ3 = [20, 50]": ("rh_FFJ3 = [50, 20]", "empty range"),
         "[palm]": ("[palm]\nbogus = 1", r"unknown key\(s\) \['bogus'\]"),
+        "link_radius_m = 0.008": ("link_radius_m = -0.008", r"geometry.*link_radius_m.*positive"),
     }
     for i, (old, (new, message)) in enumerate(cases.items()):
         path = tmp_path / f"case{i}.toml"

@@ -15,8 +15,9 @@ from typing import Any
 from augment.autows.params import AUGMENT_TOML
 from sim.config import load_toml
 from sim.errors import ConfigError, DexaugError
+from sim.hand.config import HandConfig
 
-__all__ = ["FsgError", "FsgParams", "load_fsg_params"]
+__all__ = ["HAND_FIELDS", "FsgError", "FsgParams", "load_fsg_params"]
 
 
 
@@ -26,13 +27,18 @@ class FsgError(DexaugError, ValueError):
 
 @dataclass(frozen=True)
 class FsgParams:
-    """FSG parameters (``[fsg]`` of ``configs/augment.toml``); metres and radians.
+    """FSG parameters (``[fsg]`` of ``configs/augment.toml``, and the hand's geometry from
+    ``[geometry]`` of its ``hand.toml``); metres and radians.
 
-    The defaults are the paper's / the authors' numbers where they exist (DESIGN §4); the
-    others are marked "dexaug" in the config file. What each one does: the step of the
-    :mod:`augment.fsg` overview that uses it.
+    ``fingertip_width_m`` (w_tip of the paper's eq. 2) and ``link_clearance_m`` (the link
+    radius of the link check) are properties of the hand, so they have no default here: they
+    come from the hand's folder (:func:`load_fsg_params`). The other defaults are the paper's /
+    the authors' numbers where they exist (DESIGN §4); the rest are marked "dexaug" in the
+    config file. What each one does: the step of the :mod:`augment.fsg` overview that uses it.
     """
 
+    fingertip_width_m: float
+    link_clearance_m: float
     outer: int = 200
     inner: int = 15
     outer_batch: int = 40
@@ -41,12 +47,10 @@ class FsgParams:
     match_distance_m: float = 0.008
     normal_dot: float = -0.98
     k_neighbours: int = 4
-    fingertip_width_m: float = 0.02
     contact_plane_m: float = 0.005
     min_contacts: int = 3
     max_contacts_per_finger: int = 4
     max_face_depth_m: float = 0.003
-    link_clearance_m: float = 0.008
     mu: float = 0.5
     n_edges: int = 8
     min_epsilon: float = 0.0
@@ -67,16 +71,27 @@ class FsgParams:
                 raise ValueError(f"{name} must be a positive number, got {v}")
 
 
-def load_fsg_params(path: Path | str | None = None) -> FsgParams:
-    """Read ``[fsg]`` of ``configs/augment.toml`` (or ``path``); missing keys (or a missing
-    table) take the defaults of :class:`FsgParams`. Errors name the file and key."""
+#: the FsgParams a hand's ``hand.toml`` gives (``[geometry]``), not ``configs/augment.toml``
+HAND_FIELDS = ("fingertip_width_m", "link_clearance_m")
+
+
+def load_fsg_params(hand: HandConfig, path: Path | str | None = None) -> FsgParams:
+    """Read ``[fsg]`` of ``configs/augment.toml`` (or ``path``) for ``hand`` (whose
+    ``[geometry]`` gives :data:`HAND_FIELDS`); missing keys (or a missing table) take the
+    defaults of :class:`FsgParams`. Errors name the file and key."""
     root = load_toml(path or AUGMENT_TOML)
     sec = root.section("fsg", {})
     fields = {f.name: f for f in dataclasses.fields(FsgParams)}
-    sec.reject_unknown(set(fields))
-    d = FsgParams()
-    kw: dict[str, Any] = {}
-    for name in fields:
+    for name in HAND_FIELDS:
+        if name in sec.data:
+            raise sec.error(name, "is a property of the hand: set it in [geometry] of "
+                                  "configs/hands/<hand>/hand.toml")
+    sec.reject_unknown(set(fields) - set(HAND_FIELDS))
+    geometry = {"fingertip_width_m": hand.fingertip_width_m,
+                "link_clearance_m": hand.link_radius_m}
+    d = FsgParams(**geometry)
+    kw: dict[str, Any] = dict(geometry)
+    for name in set(fields) - set(HAND_FIELDS):
         default = getattr(d, name)
         kw[name] = (sec.int(name, default) if isinstance(default, int)
                     else sec.float(name, default))

@@ -143,7 +143,7 @@ def generate(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: WorkspaceClo
     from augment.object_cloud import ObjectCloud, object_cloud
 
     t0 = time.monotonic()
-    params = params or load_fsg_params()
+    params = params or load_fsg_params(hand.config)
     if n < 1 or workers < 1 or not time_budget_s > 0:
         raise FsgError(f"need n >= 1, workers >= 1 and time_budget_s > 0; got n={n}, "
                        f"workers={workers}, time_budget_s={time_budget_s}")

@@ -8,6 +8,7 @@ checks it against the model.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -74,6 +75,8 @@ class HandConfig:
     root_body: str | None
     palm: PalmConfig
     fingers: tuple[FingerConfig, ...]
+    fingertip_width_m: float   # w_tip of the paper's eq. 2: contact width of one fingertip
+    link_radius_m: float       # finger links' radius about their skeleton (FSG's link check)
     postures: dict[str, dict[str, float]] = field(default_factory=dict)
 
     def finger(self, name: str) -> FingerConfig:
@@ -177,7 +180,13 @@ def load_hand_config(name_or_path: str | Path) -> HandConfig:
         known = hand_names()
         raise ConfigError(f"unknown hand {name_or_path!r}: no {path}; known hands: {known}")
     root = load_toml(path)
-    root.reject_unknown({"model", "palm", "fingers", "grasp"})
+    root.reject_unknown({"model", "palm", "fingers", "grasp", "geometry"})
+    geometry = root.section("geometry")
+    geometry.reject_unknown({"fingertip_width_m", "link_radius_m"})
+    sizes = {k: geometry.float(k) for k in ("fingertip_width_m", "link_radius_m")}
+    for key, value in sizes.items():
+        if not (math.isfinite(value) and value > 0):
+            raise geometry.error(key, f"expected a positive length in metres, got {value}")
     model = root.section("model")
     model.reject_unknown({"menagerie", "entry", "path", "root_body"})
     menagerie = model.str("menagerie", None)
@@ -209,7 +218,7 @@ def load_hand_config(name_or_path: str | Path) -> HandConfig:
         name=path.parent.name if path.name == "hand.toml" else path.stem, file=path,
         menagerie=menagerie, entry=model.str("entry", None),
         model_path=(path.parent / model_path).resolve() if model_path else None,
-        root_body=model.str("root_body", None),
+        root_body=model.str("root_body", None), **sizes,
         palm=PalmConfig(body=palm.str("body"), pos=np.array(palm.floats("pos", 3, [0.0] * 3)),
                         quat_wxyz=quat / np.linalg.norm(quat),
                         box_center=np.array(palm.floats("box_center", 3, [0.0] * 3)),
