@@ -6,12 +6,12 @@
    with nearest ``cloud_full`` points q_n, q_n+1 and q_n's normal nor_n,
    ``[(p_n − q_n)·nor_n]·[(p_n+1 − q_n+1)·nor_n] < 0`` is a penetration (:func:`eq3_crossing`).
    Beyond the paper: a skeleton point closer than ``link_clearance_m`` (the hand's
-   ``link_radius_m``, from its folder) to the nearest object point also counts: eq. 3 only sees the skeleton *cross* the
-   surface, while links lie at their radius around the skeleton, so a link can sink into a
-   convex object without its axis crossing it. Both are point-cloud approximations of the
-   links, so the last check of an otherwise accepted grasp is a :data:`PenetrationCheck` in the
-   validator's MuJoCo scene, given by the caller (the only mesh collision FSG computes, once
-   per output grasp).
+   ``link_radius_m``, from its folder) to the nearest object point also counts: eq. 3 only sees
+   the skeleton *cross* the surface, while links lie at their radius around the skeleton, so a
+   link can sink into a convex object without its axis crossing it. Both are point-cloud
+   approximations of the links, so the last check of an otherwise accepted grasp is a
+   :data:`PenetrationCheck` in the validator's MuJoCo scene, given by the caller (the only mesh
+   collision FSG computes, once per output grasp).
 7. **Quality** (:func:`grasp_quality`): Q1 (ε) and volume via :func:`sim.metrics.gws.gws_metrics`
    (μ, ``n_edges`` cone edges, centre = centre of mass, torque / max radius) on the contacts
    with inward normals; ε ≤ ``min_epsilon`` is dropped.
