@@ -5,6 +5,7 @@ No hand's name appears in the code outside its folder; the default hand comes fr
 from __future__ import annotations
 
 import dataclasses
+import re
 import shutil
 import subprocess
 from collections.abc import Iterable
@@ -83,7 +84,11 @@ def test_convention_check_flags_a_turned_palm_frame(hands: dict[str, Hand]) -> N
     for hand in hands.values():
         palm = hand.config.palm
         turned = dataclasses.replace(palm, quat_wxyz=quat_mul(palm.quat_wxyz, np.array([0.0, 0, 0, 1])))
-        flipped = Hand(dataclasses.replace(hand.config, palm=turned))
+        wrong = dataclasses.replace(hand.config, palm=turned)
+        with pytest.raises(ConfigError, match=rf"{re.escape(str(hand.config.file))}: palm.*"
+                                              "pulps lie behind the palm face"):
+            Hand(wrong)   # refused on load, naming the file and the reason
+        flipped = Hand(wrong, check_conventions=False)
         problems = palm_frame_problems(flipped)
         assert any("pulps lie behind the palm face" in p for p in problems), (hand.name, problems)
         assert any("face away from the palm face" in p for p in problems), (hand.name, problems)

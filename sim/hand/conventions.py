@@ -13,20 +13,45 @@ frame_palm, what the convention implies for the real model:
   a gripper's pads close in front of its base.
 
 "Closed" is the config's ``close_pose`` when it names one, else every manual AutoWS range at its
-upper end. ``Hand.load`` does not run these checks; callers (the tests) do.
+upper end. :class:`sim.hand.model.Hand` runs these checks when it is built, so a config with
+the wrong palm sign is refused with its file and the reason; this module sees the hand only
+through :class:`PalmFrameHand` (what the checks use), so the model does not import it back.
 """
 
 from __future__ import annotations
 
+from typing import Protocol
+
+import mujoco
 import numpy as np
 
-from sim.hand.model import Hand
+from sim.hand.config import HandConfig
 from sim.transforms import pose_inv, quat_to_mat
 
-__all__ = ["closed_posture", "palm_frame_measures", "palm_frame_problems"]
+__all__ = ["PalmFrameHand", "closed_posture", "palm_frame_measures", "palm_frame_problems"]
 
 
-def closed_posture(hand: Hand) -> np.ndarray:
+class PalmFrameHand(Protocol):
+    """What the checks need of a hand model (:class:`sim.hand.model.Hand` provides it)."""
+
+    config: HandConfig
+    model: mujoco.MjModel
+    nq: int
+    joint_names: tuple[str, ...]
+    palm_body_id: int
+
+    @property
+    def open_pose(self) -> np.ndarray: ...
+    def posture(self, name: str) -> np.ndarray: ...
+    def fill_coupled(self, q: np.ndarray) -> np.ndarray: ...
+    def clip(self, q: np.ndarray) -> np.ndarray: ...
+    def body_poses(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...
+    def palm_pose(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...
+    def fingertip_sites(self, q: np.ndarray, frame: str = "base") -> np.ndarray: ...
+    def tip_frames_in_palm(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...
+
+
+def closed_posture(hand: PalmFrameHand) -> np.ndarray:
     """The closed hand as a full joint vector (radians): the config's ``close_pose`` when it
     names joints, else every independent joint with a manual range at the range's upper end
     (coupled followers filled, clipped to the joint limits)."""
@@ -39,7 +64,7 @@ def closed_posture(hand: Hand) -> np.ndarray:
     return hand.clip(hand.fill_coupled(q))
 
 
-def _palm_geoms_y(hand: Hand, q: np.ndarray) -> float | None:
+def _palm_geoms_y(hand: PalmFrameHand, q: np.ndarray) -> float | None:
     """Mean y (metres, frame_palm) of the palm body's geom centres at q; None without geoms."""
     m = hand.model
     geoms = np.flatnonzero(m.geom_bodyid == hand.palm_body_id)
@@ -53,7 +78,7 @@ def _palm_geoms_y(hand: Hand, q: np.ndarray) -> float | None:
     return float((inv_p + centres @ quat_to_mat(inv_q).T)[:, 1].mean())
 
 
-def palm_frame_measures(hand: Hand) -> dict[str, float | None]:
+def palm_frame_measures(hand: PalmFrameHand) -> dict[str, float | None]:
     """The quantities the convention constrains, in frame_palm (metres; unit vectors):
     ``palm_geoms_y`` (open pose; None when the palm body has no geoms), ``palm_box_center_y``,
     ``closed_pulp_y`` (mean pulp position) and ``closed_v_f_y`` (mean pulp normal)."""
@@ -70,7 +95,7 @@ def palm_frame_measures(hand: Hand) -> dict[str, float | None]:
     }
 
 
-def palm_frame_problems(hand: Hand) -> list[str]:
+def palm_frame_problems(hand: PalmFrameHand) -> list[str]:
     """What in the hand's config contradicts the palm-frame convention (empty when nothing),
     each problem naming the config file and the measured value."""
     m = palm_frame_measures(hand)

@@ -18,6 +18,7 @@ import numpy as np
 
 from sim.errors import AssetError, ConfigError, GraspInputError
 from sim.hand.config import HandConfig, load_hand_config
+from sim.hand.conventions import palm_frame_problems
 from sim.hand.kinematics import TreeKinematics
 from sim.paths import ensure_menagerie_root
 from sim.transforms import pose_inv, pose_mul, quat_to_mat
@@ -47,7 +48,10 @@ def hand_model_path(config: HandConfig) -> Path:
 class Hand:
     """A hand model plus its config, validated against each other on construction."""
 
-    def __init__(self, config: HandConfig) -> None:
+    def __init__(self, config: HandConfig, *, check_conventions: bool = True) -> None:
+        """Build the hand of ``config``; with ``check_conventions`` a config whose palm frame
+        contradicts DESIGN §3 (+y out of the palm face, toward the pulps:
+        :mod:`sim.hand.conventions`) is refused, naming the file and what was measured."""
         self.config = config
         self.model_path = hand_model_path(config)
         self.model = self.spec().compile()
@@ -66,6 +70,8 @@ class Hand:
                             for f in config.fingers}
         self._coupling = [(m.joint(fol).qposadr[0], m.joint(lead).qposadr[0], coef)
                           for f in config.fingers for fol, (lead, coef) in f.coupled_to.items()]
+        if check_conventions and (problems := palm_frame_problems(self)):
+            raise ConfigError("; ".join(problems))
 
     @classmethod
     def load(cls, name_or_path: str | Path) -> Hand:
