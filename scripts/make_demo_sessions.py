@@ -20,7 +20,7 @@ How a demonstration is made, with dexaug's own tools only (no human, no shared r
    at 50 % (n = 200), a three-finger one at 77 % (n = 60)), and an operator would re-record a
    demo whose augmentations drop the object.
 
-The synthetic operator (``teleop.synthetic.synth``) through the bridge was tried first and did not yield
+The synthetic operator (``teleop.synthetic``) through the bridge was tried first and did not yield
 demos: its retargeted precision grasps knock light objects over or stop a few millimetres short.
 
 Run: ``.venv/bin/python scripts/make_demo_sessions.py [--objects ...]`` (about a minute each).

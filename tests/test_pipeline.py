@@ -157,7 +157,6 @@ def test_session_to_validated_dataset_and_report(shadow, tmp_path: Path) -> None
 
 def test_run_key_follows_every_input(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """A finished demo is skipped only when options, demo and configs are all unchanged."""
-    import dataclasses
 
     from dexaug.pipeline import options as pipeline
     from dexaug.pipeline.options import AugmentOptions, run_key

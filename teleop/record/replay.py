@@ -83,7 +83,7 @@ def replay(path: Path | str, session: zenoh.Session, rig: str, rate: float | str
 
 def replay_capture(frames: Sequence[HandFrame], session: zenoh.Session, rig: str,
                    rate: float | str = 1.0, *, wait_for_subscriber_s: float = 5.0) -> int:
-    """Publish a list of frames (e.g. :func:`teleop.input.webxr.iwer_hand_frames` of a Quest capture),
+    """Publish a list of frames (e.g. :func:`teleop.input.iwer.iwer_hand_frames` of a Quest capture),
     encoded as ingest would, timed by their ``device_time_s``. Returns the count."""
     payloads = [(f.device_time_s, encode(f)) for f in frames]
     pub = hands_publisher(session, rig, wait_for_subscriber_s)
