@@ -12,7 +12,11 @@ Layout (one group per object, compatible with the reference implementation's ``p
     ``contact_offsets`` (N+1) int64: grasp i owns rows ``offsets[i]:offsets[i+1]``;
     validation columns ``passed`` (N) bool, ``failure`` (N) strings ("" when passed or not
     validated), ``displacement_m``, ``rotation_rad``, ``penetration_m``, ``sim_epsilon`` (N)
-    (NaN when not validated); ``demo_id`` (N) strings.
+    (NaN when not validated); ``pregrasp_pose`` / ``squeeze_pose`` (N,J) radians: the joint
+    vectors the validator closed from and to (NaN when not simulated), ``stages_made_by`` (N)
+    strings: how they were made ("dexaug" contact targets, "bodex", "dgb-rule", "given"),
+    ``closing`` (N) strings: "free" or "pinned" (the object held while the fingers closed);
+    ``demo_id`` (N) strings.
     Attributes (provenance): ``hand``, ``config_hash``, ``seed``, ``versions`` (JSON).
 ``/<object>/rejected/``: the same columns for grasps that failed validation (``failure`` says
     why), so the main table holds only usable grasps when the writer splits them.
@@ -46,8 +50,9 @@ COLUMNS: dict[str, Any] = {
     "palm_pose": np.float64, "hand_pose": np.float64, "gws": np.float64, "volume": np.float64,
     "fingers_used": np.bool_, "passed": np.bool_, "displacement_m": np.float64,
     "rotation_rad": np.float64, "penetration_m": np.float64, "sim_epsilon": np.float64,
+    "pregrasp_pose": np.float64, "squeeze_pose": np.float64,
 }
-_STR_COLUMNS = ("failure", "demo_id")
+_STR_COLUMNS = ("failure", "demo_id", "stages_made_by", "closing")
 _STR = h5py.string_dtype()
 
 
@@ -104,6 +109,10 @@ def from_fsg(grasps: Sequence[Any], joint_names: Sequence[str], finger_names: Se
         "passed": np.zeros(n, bool), "failure": np.array([""] * n, dtype=object),
         "displacement_m": nan.copy(), "rotation_rad": nan.copy(), "penetration_m": nan.copy(),
         "sim_epsilon": nan.copy(), "demo_id": np.array([demo_id] * n, dtype=object),
+        "pregrasp_pose": np.full((n, len(joint_names)), np.nan),
+        "squeeze_pose": np.full((n, len(joint_names)), np.nan),
+        "stages_made_by": np.array([""] * n, dtype=object),
+        "closing": np.array([""] * n, dtype=object),
     }
     pts, nrm, fin, off = [], [], [], [0]
     for g in grasps:
@@ -123,6 +132,10 @@ def from_fsg(grasps: Sequence[Any], joint_names: Sequence[str], finger_names: Se
             cols["rotation_rad"][i] = r.rotation_rad
             cols["penetration_m"][i] = r.penetration_m
             cols["sim_epsilon"][i] = r.epsilon
+            if r.pregrasp is not None:
+                cols["pregrasp_pose"][i], cols["squeeze_pose"][i] = r.pregrasp, r.squeeze
+            cols["stages_made_by"][i] = r.squeeze_convention or ""
+            cols["closing"][i] = r.closing or ""
     table = ObjectTable(cols, tuple(joint_names), tuple(fingers), dict(attrs or {}))
     if validation is not None and split_rejected:
         keep = cols["passed"]

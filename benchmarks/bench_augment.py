@@ -5,7 +5,8 @@ that has one): the whole pipeline of ``dexaug augment`` (demo extraction, demo-c
 from the cache, FSG with link penetration check, lift-drop validation of every grasp, dataset;
 no report images) with ``--n`` grasps, in a fresh output folder. Prints per demo the grasps
 generated and passed, the seconds per stage and validated grasps per minute (passed grasps over
-the wall time of workspace + FSG + validation), as a Markdown table.
+the wall time of workspace + FSG + validation) and whether the demonstrated grasp itself passes,
+as a Markdown table.
 
 Usage: ``.venv/bin/python benchmarks/bench_augment.py [--n 200] [--workers 2]``.
 """
@@ -32,15 +33,17 @@ def main() -> None:
     args = ap.parse_args()
     logging.basicConfig(level=logging.WARNING)
     opts = AugmentOptions(n=args.n, workers=args.workers, gallery=0, time_budget_s=300.0)
-    print(f"| Demo | Generated | Passed lift-drop | Pass % | Workspace s | FSG s | Validate s "
-          f"| Validated / min ({args.workers} workers) |")
-    print("|---|---|---|---|---|---|---|---|")
+    print(f"| Demo | Generated | Passed lift-drop | Pass % | Demo grasp | Workspace s | FSG s "
+          f"| Validate s | Validated / min ({args.workers} workers) |")
+    print("|---|---|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as out:
         for session in args.sessions:
             for s in augment_session(session, out, opts, force=True):
                 t = s.timings_s
                 rate = 100.0 * s.passed / s.generated if s.generated else 0.0
-                print(f"| {s.demo_id} | {s.generated} | {s.passed} | {rate:.0f} "
+                demo = s.demo_grasp or {}
+                verdict = "pass" if demo.get("passed") else (demo.get("failure") or "—")
+                print(f"| {s.demo_id} | {s.generated} | {s.passed} | {rate:.0f} | {verdict} "
                       f"| {t['workspace']:.2f} | {t['fsg']:.2f} | {t['validate']:.2f} "
                       f"| {s.validated_per_min:.0f} |", flush=True)
 

@@ -10,7 +10,8 @@ iteration, +LinkPen with the link penetration check):
 * GWS ε and volume: means over the grasps whose *simulated* contacts after closing are in force
   closure, and valid-ε %: their share — the paper's GraspIt columns, measured by the MuJoCo
   validator instead (DESIGN §5);
-* what the paper could not measure: lift-drop and six-dir pass rates, the hand–object
+* what the paper could not measure: lift-drop, DexGraspBench (``dgb``, dexaug's pregrasp and
+  squeeze) and six-dir pass rates, the hand–object
   penetration at placement (mean of the per-grasp maximum), and diversity: the RMS distance of
   palm positions from their mean and the mean standard deviation of the used joints.
 
@@ -62,6 +63,7 @@ class Row:
     volume: float = math.nan
     valid_pct: float = math.nan
     lift_drop_pct: float = math.nan
+    dgb_pct: float = math.nan
     six_dir_pct: float = math.nan
     penetration_mm: float = math.nan
     palm_spread_mm: float = math.nan
@@ -134,6 +136,8 @@ def measure(objects: list[str], methods: list[str], workspaces: list[str], *, n:
                     row.valid_pct = 100.0 * len(valid) / k
                     row.lift_drop_pct = 100.0 * np.mean([r.passed for r in ld])
                     row.penetration_mm = 1e3 * float(np.mean([r.penetration_m for r in ld]))
+                    dgb = validate_many(hand.name, name, grasps, "dgb", workers=workers)
+                    row.dgb_pct = 100.0 * np.mean([r.passed for r in dgb])
                     if six_dir:
                         sd = validate_many(hand.name, name, grasps, "six-dir", workers=workers)
                         row.six_dir_pct = 100.0 * np.mean([r.passed for r in sd])
@@ -152,9 +156,9 @@ def markdown(rows: list[Row], paper: dict[tuple[str, str, str], list[float]]) ->
     """The table: ours / paper for the paper's four columns, then ours only."""
     head = ("| Object | Workspace | Method | Results | Time / result (s) ours / paper "
             "| GWS ε ours / paper | GWS volume ours / paper | Valid ε % ours / paper "
-            "| Lift-drop % | Six-dir % | Penetration (mm) | Palm spread (mm) "
+            "| Lift-drop % | DGB % | Six-dir % | Penetration (mm) | Palm spread (mm) "
             "| Joint spread (°) |")
-    lines = [head, "|" + "---|" * 13]
+    lines = [head, "|" + "---|" * 14]
     for r in rows:
         p = paper.get((r.workspace, r.object, r.method), [math.nan] * 4)
         note = "" if r.stopped == "done" else " (budget)"
@@ -164,7 +168,7 @@ def markdown(rows: list[Row], paper: dict[tuple[str, str, str], list[float]]) ->
             f"| {_f(r.epsilon, '.2e')} / {_f(p[1], '.2e')} "
             f"| {_f(r.volume, '.2e')} / {_f(p[2], '.2e')} "
             f"| {_f(r.valid_pct, '.1f')} / {_f(p[3], '.1f')} "
-            f"| {_f(r.lift_drop_pct, '.1f')} | {_f(r.six_dir_pct, '.1f')} "
+            f"| {_f(r.lift_drop_pct, '.1f')} | {_f(r.dgb_pct, '.1f')} | {_f(r.six_dir_pct, '.1f')} "
             f"| {_f(r.penetration_mm, '.2f')} | {_f(r.palm_spread_mm, '.0f')} "
             f"| {_f(r.joint_spread_deg, '.1f')} |")
     return "\n".join(lines)

@@ -24,7 +24,7 @@ def test_one_demo_row_is_measured() -> None:
                      workers=1, six_dir=True)
     assert row.found == 4 and row.stopped == "done"
     assert 0 < row.time_per_result_s < 30
-    for pct in (row.valid_pct, row.lift_drop_pct, row.six_dir_pct):
+    for pct in (row.valid_pct, row.lift_drop_pct, row.dgb_pct, row.six_dir_pct):
         assert 0.0 <= pct <= 100.0
     assert math.isfinite(row.penetration_mm) and row.palm_spread_mm > 0
     assert "| 062_dice | demo | FSG+Aff+LinkPen | 4/4 |" in markdown([row], paper_figures())

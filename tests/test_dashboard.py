@@ -2,8 +2,9 @@
 
 The browser test is the user's path, checked on content: a session without a usable grasp shows
 its reason; "Augment" on the dice demo runs the real pipeline (small options) with progress on
-the page; the numbers the page then shows equal ``summary.json`` and the dataset, and the
-report it links states the same passed count; a restarted dashboard shows the finished result
+the page; the numbers the page then shows equal ``summary.json`` and the dataset, the demo
+grasp's own verdict is shown beside them as the report states it, and the report it links
+states the same passed count; a restarted dashboard shows the finished result
 directly. A screenshot goes to ``tests/artifacts/``. The queue and API tests use fake jobs (no pipeline):
 order, progress, a dexaug error, an unexpected error, bad requests.
 """
@@ -56,6 +57,21 @@ def _wait_final(q: JobQueue, n: int, timeout_s: float = 60.0) -> list[dict[str, 
             return jobs
         time.sleep(0.1)
     raise AssertionError(f"jobs not finished in {timeout_s} s: {q.snapshot()}")
+
+
+def test_result_view_of_a_summary_without_the_demo_check(tmp_path: Path) -> None:
+    """A summary.json written before the demo grasp was checked lists as not validated, not
+    as an error; one with the check carries its verdict and the report's wording of it."""
+    from dexaug.dashboard.catalog import result_view
+    from dexaug.pipeline.summary import demo_grasp_text, demo_verdict
+
+    old = result_view({"generated": 4, "passed": 1, "report": None}, tmp_path)
+    assert old["demo_grasp"] is None and old["demo_grasp_text"].startswith("not validated")
+    verdict = demo_verdict("six-dir", False, "slipped", 0.021, 0.05)
+    new = result_view({"generated": 4, "passed": 1, "demo_grasp": verdict}, tmp_path)
+    assert new["demo_grasp"] == verdict and new["pass_rate"] == 0.25
+    assert new["demo_grasp_text"] == demo_grasp_text(verdict) == (
+        "failed (slipped) — six-dir; the object moved 21.0 mm and turned 2.9° in the hand")
 
 
 def test_job_queue_order_progress_and_failures() -> None:
@@ -155,6 +171,7 @@ def test_api_lists_errors_and_survives_a_failed_job(tmp_path: Path) -> None:
 def test_augment_a_demo_from_the_page(chromium, tmp_path: Path) -> None:
     from dexaug.dashboard.server import Dashboard, DashboardConfig
     from dexaug.pipeline.options import AugmentOptions
+    from dexaug.pipeline.summary import demo_grasp_text
 
     t0 = time.perf_counter()
     out = tmp_path / "out"
@@ -188,7 +205,7 @@ def test_augment_a_demo_from_the_page(chromium, tmp_path: Path) -> None:
         assert any(s.startswith("FSG sampling") for s in seen), seen
         assert any(s.startswith("validation: ") for s in seen), seen
         shown = {c: row.locator(f".{c}").inner_text() for c in ("n-generated", "n-passed",
-                                                                 "pass-rate")}
+                                                                 "pass-rate", "demo-grasp")}
         shot = artifact_path("dashboard_augment.png")
         page.screenshot(path=str(shot), full_page=True)
         print(f"\nscreenshot: {shot}")
@@ -199,11 +216,15 @@ def test_augment_a_demo_from_the_page(chromium, tmp_path: Path) -> None:
         assert table["passed"].all()
         assert int(shown["n-generated"]) == summary["generated"] == len(table) + len(table.rejected)
         assert shown["pass-rate"] == f"{100 * summary['passed'] / summary['generated']:.1f} %"
+        assert summary["demo_grasp"]["protocol"] == "lift-drop"
+        assert shown["demo-grasp"] == demo_grasp_text(summary["demo_grasp"])
+        assert shown["demo-grasp"].startswith(("passed —", "failed ("))
 
         href = row.locator("a.report-link").get_attribute("href")
         report = new_page(chromium, https=False)
         report.goto(url.rstrip("/") + href)
         assert report.locator("#m-grasps-passed-validation").inner_text() == str(len(table))
+        assert report.locator("#m-demonstration-grasp").inner_text() == shown["demo-grasp"]
         assert report.locator("img[alt='palm cloud']").evaluate("e => e.naturalWidth") > 0
         report.close()
         assert not [c for c in console if c.startswith(("error", "pageerror"))], console
@@ -217,6 +238,7 @@ def test_augment_a_demo_from_the_page(chromium, tmp_path: Path) -> None:
         page.wait_for_function("() => document.body.dataset.loaded === '1'", timeout=30_000)
         assert "earlier" in row.locator(".done-note").inner_text()
         assert row.locator(".n-passed").inner_text() == shown["n-passed"]
+        assert row.locator(".demo-grasp").inner_text() == shown["demo-grasp"]
         assert row.locator("a.report-link").get_attribute("href") == href
         assert not again.jobs.snapshot()
         assert not [c for c in console if c.startswith(("error", "pageerror"))], console

@@ -31,6 +31,7 @@ from sim.errors import DexaugError
 from sim.metrics.gws import gws_metrics
 from sim.transforms import axis_angle_to_mat, quat_to_mat, rotation_between
 from sim.validate.batch import ScenePenetration
+from sim.validate.result import ValidationResult
 from tests.conftest import needs_menagerie, needs_ycb
 
 CAN = "005_tomato_soup_can"
@@ -354,21 +355,19 @@ def _fake_grasps(n: int, nq: int, fingers: tuple[str, ...], seed: int = 0) -> li
     return out
 
 
-@dataclasses.dataclass
-class _Val:
-    passed: bool
-    failure: str | None
-    displacement_m: float = 0.001
-    rotation_rad: float = 0.01
-    penetration_m: float = 0.0
-    epsilon: float = 0.05
+def _val(passed: bool, failure: str | None, q: int) -> ValidationResult:
+    """A validation result as the validator fills it (pregrasp/squeeze made by dexaug)."""
+    return ValidationResult("lift-drop", passed, failure, 0.0, epsilon=0.05, displacement_m=0.001,
+                            rotation_rad=0.01, closing="free", squeeze_convention="dexaug",
+                            pregrasp=np.full(q, 0.1), squeeze=np.full(q, 0.3))
 
 
 def test_dataset_round_trip_append_and_atomicity(tmp_path: Path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
     joints = tuple(f"j{i}" for i in range(6))
     fingers = ("thumb", "index", "middle")
     grasps = _fake_grasps(4, 6, fingers)
-    vals = [_Val(True, None), _Val(False, "slipped"), _Val(True, None), _Val(False, "penetration")]
+    vals = [_val(True, None, 6), _val(False, "slipped", 6), _val(True, None, 6),
+            _val(False, "penetration", 6)]
     attrs = {"hand": "h", "config_hash": "abc", "seed": 3, "versions": {"numpy": np.__version__}}
     table = dataset.from_fsg(grasps, joints, fingers, vals, demo_id="d1", attrs=attrs)
     path = tmp_path / "grasps.h5"
@@ -385,6 +384,10 @@ def test_dataset_round_trip_append_and_atomicity(tmp_path: Path, monkeypatch) ->
     assert list(loaded["fingers_used"][1]) == [True, True, False]
     assert loaded.attrs["hand"] == "h" and loaded.attrs["seed"] == 3
     assert list(loaded["demo_id"]) == ["d1", "d1"]
+    np.testing.assert_array_equal(loaded["pregrasp_pose"], np.full((2, 6), 0.1))
+    np.testing.assert_array_equal(loaded["squeeze_pose"], np.full((2, 6), 0.3))
+    assert list(loaded["stages_made_by"]) == ["dexaug", "dexaug"]
+    assert list(loaded["closing"]) == ["free", "free"]
     import h5py
     with h5py.File(path) as f:
         assert f["obj/palm_pose"].attrs["order"] == "x y z qw qx qy qz"

@@ -102,6 +102,7 @@ def test_workspace_fsg_and_validation(name: str, hands: dict[str, Hand]) -> None
     from augment.object_cloud import object_cloud
     from dexaug.pipeline.run import generate_grasps
     from sim.validate.batch import validate_many
+    from sim.validate.config import PROTOCOLS
     from sim.world.objects import load_object
 
     hand = hands[name]
@@ -113,9 +114,13 @@ def test_workspace_fsg_and_validation(name: str, hands: dict[str, Hand]) -> None
     assert res.grasps, res.stats
     for g in res.grasps:
         assert np.all(g.grasp.joints >= hand.lower - 1e-9) and np.all(g.grasp.joints <= hand.upper + 1e-9)
-    results = validate_many(hand.name, obj.name, [g.grasp for g in res.grasps], "lift-drop", workers=1)
-    assert len(results) == len(res.grasps)
-    assert all(r.protocol == "lift-drop" and (r.passed == (r.failure is None)) for r in results)
+    for protocol in PROTOCOLS:   # placement → simulation → verdict, every protocol
+        results = validate_many(hand.name, obj.name, [g.grasp for g in res.grasps], protocol,
+                                workers=1)
+        assert len(results) == len(res.grasps)
+        assert all(r.protocol == protocol and (r.passed == (r.failure is None)) for r in results)
+        assert all(r.pregrasp is not None and r.pregrasp.shape == (hand.nq,) for r in results
+                   if r.failure != "penetration")
 
 
 # ------------------------------------------------------------------- no hand names in the code

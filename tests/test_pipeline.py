@@ -114,11 +114,14 @@ def test_hand_not_installed(tmp_path: Path) -> None:
 @needs_ycb
 def test_session_to_validated_dataset_and_report(shadow, tmp_path: Path) -> None:
     """A recorded session in, a dataset out: ≥ 20 grasps that pass lift-drop, joint angles
-    within the demo-centred ranges, the report stating the dataset's numbers; re-running skips
-    the finished demo."""
+    within the demo-centred ranges, the report stating the dataset's numbers and the demo
+    grasp's own verdict (the validator's); re-running skips the finished demo, and a summary
+    written before the demo check still loads."""
     from augment.autows.params import load_autows_params
     from dexaug.pipeline.options import AugmentOptions
     from dexaug.pipeline.run import augment_session
+    from dexaug.pipeline.summary import demo_grasp_text, finished
+    from sim.validate.batch import cached_validator
 
     opts = AugmentOptions(n=80, workers=2, time_budget_s=90.0, gallery=2)
     (s,) = augment_session(CAN_SESSION, tmp_path, opts)
@@ -142,10 +145,31 @@ def test_session_to_validated_dataset_and_report(shadow, tmp_path: Path) -> None
     assert int(shown["grasps-passed-validation"]) == len(t)
     assert int(shown["grasps-generated-fsg"]) == len(t) + len(t.rejected)
     assert (Path(s.report).parent / "palm_cloud.png").stat().st_size > 1000
+    # the demonstration's own grasp, validated beside the augmented ones (DESIGN §5): the
+    # summary holds what the validator says of it, and the report states that verdict
+    folder = Path(s.dataset).parent
+    direct = cached_validator(demo.hand, demo.object).validate(demo.grasp, "lift-drop")
+    verdict = json.loads((folder / "summary.json").read_text())["demo_grasp"]
+    assert verdict["protocol"] == "lift-drop" and verdict["passed"] is direct.passed
+    assert verdict["failure"] == (None if direct.failure is None else str(direct.failure))
+    if direct.passed:
+        assert verdict["displacement_m"] == pytest.approx(direct.displacement_m, rel=1e-6)
+        assert verdict["rotation_deg"] == pytest.approx(math.degrees(direct.rotation_rad), rel=1e-6)
+    assert shown["demonstration-grasp"] == demo_grasp_text(verdict)
+    assert shown["demonstration-grasp"].startswith("passed —" if direct.passed else "failed (")
+    assert f"Demonstration grasp: {demo_grasp_text(verdict)}" in html
     from sim.validate.config import VALIDATE_TOML
     assert t.attrs["config:validate.toml"] == VALIDATE_TOML.read_text()   # provenance
     again = augment_session(CAN_SESSION, tmp_path, opts)
     assert again[0].skipped and again[0].passed == s.passed
+    assert again[0].demo_grasp == verdict
+    # a summary.json from before the demo check (no field) is still a finished run
+    old = json.loads((folder / "summary.json").read_text())
+    del old["demo_grasp"]
+    (folder / "summary.json").write_text(json.dumps(old))
+    loaded = finished(folder, demo, opts)
+    assert loaded is not None and loaded.demo_grasp is None and loaded.passed == s.passed
+    assert demo_grasp_text(loaded.demo_grasp).startswith("not validated")
     # an interrupted run (no summary yet) is redone, never trusted
     (Path(s.dataset).parent / "summary.json").unlink()
     shutil.copy(s.dataset, tmp_path / "keep.h5")
@@ -153,6 +177,26 @@ def test_session_to_validated_dataset_and_report(shadow, tmp_path: Path) -> None
     redo = augment_session(CAN_SESSION, tmp_path, same)
     assert not redo[0].skipped and redo[0].run_key == s.run_key
     assert redo[0].passed == s.passed and (Path(s.dataset).parent / "summary.json").is_file()
+
+
+@needs_menagerie
+@needs_ycb
+def test_a_demo_grasp_that_cannot_be_validated_is_reported_not_raised() -> None:
+    """The demo check is a diagnostic beside the augmentation: a demo grasp that penetrates,
+    or that the validator cannot take at all, comes back failed with the reason, as plain
+    JSON (no NaN, which the dashboard's browser cannot parse)."""
+    from dexaug.pipeline.run import validate_demo_grasp
+
+    demo = load_demo(REPO_ROOT / "recordings" / "demos" / "005_tomato_soup_can.json")
+    inside = dataclasses.replace(demo, palm_pos_m=np.zeros(3))   # the palm in the can's centre
+    assert validate_demo_grasp(demo.hand, demo.object, inside, "lift-drop") == {
+        "protocol": "lift-drop", "passed": False, "failure": "penetration",
+        "displacement_m": None, "rotation_deg": None}
+    short = dataclasses.replace(demo, joints=demo.joints[:3])   # another hand's joint vector
+    verdict = validate_demo_grasp(demo.hand, demo.object, short, "lift-drop")
+    assert not verdict["passed"] and verdict["displacement_m"] is None
+    assert re.match(r"not validated: .*expected \d+ joint values", verdict["failure"]), verdict
+    json.dumps(verdict, allow_nan=False)
 
 
 def test_run_key_follows_every_input(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -100,6 +100,7 @@ def generate_cmd(args: argparse.Namespace, console: Console) -> int:
             vt = bar.add_task(f"validate {args.validate}", total=len(res.grasps))
             results = validate_many(hand.name, obj.name, [g.grasp for g in res.grasps],
                                     args.validate, workers=workers,
+                                    squeeze_convention=args.squeeze_convention,
                                     progress=lambda k: bar.update(vt, completed=k))
     table = dataset.from_fsg(res.grasps, hand.joint_names, hand.finger_names, results,
                              demo_id=demo.id if demo else "",

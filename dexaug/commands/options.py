@@ -25,8 +25,16 @@ def hand_arg(p: argparse.ArgumentParser, help: str = "hand config name (configs/
 def generation_args(p: argparse.ArgumentParser) -> None:
     """Options shared by ``generate`` and ``augment``."""
     p.add_argument("--n", type=int, default=200, help="grasps wanted per demo / object")
-    p.add_argument("--validate", choices=("lift-drop", "six-dir", "none"), default="lift-drop",
-                   help="simulated validation of every grasp (default lift-drop)")
+    from sim.validate.config import PROTOCOLS, SQUEEZE_CONVENTIONS
+
+    p.add_argument("--validate", choices=(*PROTOCOLS, "none"), default="lift-drop",
+                   help="simulated validation of every grasp: lift-drop (dexaug's, real mass), "
+                   "six-dir (dexaug's stricter pushes, real mass) or dgb (DexGraspBench's "
+                   "protocol); default %(default)s")
+    p.add_argument("--squeeze-convention", choices=SQUEEZE_CONVENTIONS, default=None,
+                   help="dgb: how each grasp's pregrasp and squeeze are made (dexaug: contact "
+                   "targets; bodex: squeeze = 2·grasp − pregrasp; dgb-rule: 0.9/1.1 × grasp); "
+                   "default: configs/validate.toml [dgb] squeeze_convention")
     p.add_argument("--table", action="store_true", help="object on a table: keep the palm and "
                    "fingertips above it")
     p.add_argument("--no-linkpen", action="store_true", help="skip the link penetration check")
@@ -44,4 +52,5 @@ def augment_options(args: argparse.Namespace) -> AugmentOptions:
     return AugmentOptions(n=args.n, validate=None if args.validate == "none" else args.validate,
                           link_penetration=not args.no_linkpen, table=args.table,
                           seed=args.seed, workers=args.workers or default_workers(),
-                          time_budget_s=args.budget, gallery=args.gallery)
+                          time_budget_s=args.budget, gallery=args.gallery,
+                          squeeze_convention=args.squeeze_convention)

@@ -26,7 +26,10 @@ def _validate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--object", help="only grasps of this object")
     p.add_argument("--grasps", type=Path, help="reference-grasp TOML (default: "
                    "configs/hands/<hand>/grasps.toml)")
-    p.add_argument("--protocol", choices=("lift-drop", "six-dir", "both"), default="both")
+    from sim.validate.config import PROTOCOLS
+
+    p.add_argument("--protocol", choices=(*PROTOCOLS, "all"), default="all",
+                   help="lift-drop, six-dir, dgb (DexGraspBench's protocol) or all; default %(default)s")
     p.add_argument("--render", type=Path, metavar="DIR",
                    help="write a PNG of each grasp after closing (contacts marked) into DIR")
     p.add_argument("--json", type=Path, help="write the full results as JSON")
@@ -47,7 +50,7 @@ def _result_table(rows: list[tuple[str, str, object]]) -> Table:
 
 def run_reference_validation(hand_name: str, console: Console, *, object_name: str | None = None,
                              grasps_path: Path | None = None, protocols: tuple[str, ...] = (
-                                 "lift-drop", "six-dir"), render_dir: Path | None = None,
+                                 "lift-drop", "six-dir", "dgb"), render_dir: Path | None = None,
                              json_path: Path | None = None) -> int:
     """Validate the hand's reference grasps and print a results table; returns the exit code."""
     from sim.hand.model import Hand
@@ -100,7 +103,9 @@ def validate(args: argparse.Namespace, console: Console) -> int:
     (configs/hands/<hand>/grasps.toml). Prints per grasp: pass/fail and why, contact count,
     penetration, object displacement and rotation, and the GWS ε/volume of the simulated contacts.
     """
-    protocols = ("lift-drop", "six-dir") if args.protocol == "both" else (args.protocol,)
+    from sim.validate.config import PROTOCOLS
+
+    protocols = PROTOCOLS if args.protocol == "all" else (args.protocol,)
     if args.render:
         from sim.world.render import select_gl_backend
 

@@ -25,7 +25,7 @@ from typing import Any
 from urllib.parse import quote
 
 from dexaug.pipeline.options import AugmentOptions, demo_dir
-from dexaug.pipeline.summary import finished
+from dexaug.pipeline.summary import demo_grasp_text, finished
 from sim.demo import Demo
 from sim.errors import DexaugError
 from teleop.record.demos import extract_demos
@@ -61,7 +61,9 @@ class SessionEntry:
 
 def result_view(summary: dict[str, Any], out_root: Path) -> dict[str, Any]:
     """The numbers the page shows of a ``summary.json`` (or a job's result): generated,
-    passed, pass rate, failures, and the dashboard URL of the report (None without one)."""
+    passed, pass rate, failures, the demo grasp's own verdict (``demo_grasp``, None when not
+    validated, and the report's wording of it), and the dashboard URL of the report (None
+    without one)."""
     generated, passed = int(summary.get("generated", 0)), int(summary.get("passed", 0))
     report = summary.get("report")
     url = None
@@ -75,6 +77,8 @@ def result_view(summary: dict[str, Any], out_root: Path) -> dict[str, Any]:
     return {"generated": generated, "passed": passed,
             "pass_rate": passed / generated if generated else None,
             "requested": summary.get("requested"), "failures": summary.get("failures", {}),
+            "demo_grasp": summary.get("demo_grasp"),
+            "demo_grasp_text": demo_grasp_text(summary.get("demo_grasp")),
             "fsg_stopped": summary.get("fsg_stopped"), "report_url": url,
             "dataset": summary.get("dataset"), "skipped": bool(summary.get("skipped"))}
 

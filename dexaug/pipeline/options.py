@@ -27,9 +27,10 @@ Progress = Callable[[str, int, int], None]
 
 @dataclass(frozen=True)
 class AugmentOptions:
-    """What one augmentation run does. ``validate``: "lift-drop", "six-dir" or None (keep
-    every FSG grasp unvalidated); ``time_budget_s`` bounds FSG (wall seconds); ``gallery``
-    renders this many grasps for the report (0: no images)."""
+    """What one augmentation run does. ``validate``: "lift-drop", "six-dir", "dgb" or None
+    (keep every FSG grasp unvalidated); ``squeeze_convention``: how dgb makes each grasp's
+    pregrasp and squeeze (None: the config's); ``time_budget_s`` bounds FSG (wall seconds);
+    ``gallery`` renders this many grasps for the report (0: no images)."""
 
     n: int = 200
     validate: str | None = "lift-drop"
@@ -39,6 +40,7 @@ class AugmentOptions:
     workers: int = field(default_factory=default_workers)
     time_budget_s: float = 120.0
     gallery: int = 6
+    squeeze_convention: str | None = None
 
 
 #: the configuration files an augmentation's results depend on (besides the hand's own)

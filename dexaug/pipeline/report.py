@@ -1,4 +1,5 @@
-"""The per-demo HTML report: demo image, gallery of kept grasps, palm-position cloud, metrics.
+"""The per-demo HTML report: demo image and verdict, gallery of kept grasps, palm-position
+cloud, metrics.
 
 The report states exactly the numbers of ``summary.json`` and the dataset (it is written from
 the same :class:`~dexaug.pipeline.summary.DemoSummary` and table), so a reader can trust either. The
@@ -19,12 +20,12 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
+from dexaug.pipeline.summary import DemoSummary, demo_grasp_text
 from sim.io import write_bytes_atomic
 from sim.world.render import gl_available, save_png
 
 if TYPE_CHECKING:
     from augment.dataset import ObjectTable
-    from dexaug.pipeline.summary import DemoSummary
     from sim.demo import Demo
     from sim.grasp import Grasp
     from sim.hand.model import Hand
@@ -108,6 +109,7 @@ def _html(demo: Demo, s: DemoSummary, images: list[str], note: str) -> str:
             ("grasps requested", s.requested), ("grasps generated (FSG)", s.generated),
             ("grasps passed validation", s.passed),
             ("pass rate", f"{100 * s.passed / s.generated:.1f} %" if s.generated else "—"),
+            ("demonstration grasp", demo_grasp_text(s.demo_grasp)),
             ("FSG stopped", s.fsg_stopped),
             ("validated grasps / min", f"{s.validated_per_min:.1f}")]
     rows += [(f"failures: {k}", v) for k, v in sorted(s.failures.items())]
@@ -124,6 +126,7 @@ table{{border-collapse:collapse}}th,td{{border:1px solid #ccc;padding:4px 8px;te
 img{{margin:4px;border:1px solid #ddd}}</style></head>
 <body><h1>Augmentation of {e(s.demo_id)}</h1>
 <h2>Demonstration</h2>{demo_img}{note}
+<p id="demo-grasp">Demonstration grasp: {e(demo_grasp_text(s.demo_grasp))}</p>
 <h2>Metrics</h2><table id="metrics">{table}</table>
 <h2>Palm positions of the kept grasps</h2><img src="palm_cloud.png" alt="palm cloud">
 <h2>Gallery (best simulated ε first)</h2>{gallery or '<p>No grasps passed.</p>'}

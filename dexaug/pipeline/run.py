@@ -2,10 +2,12 @@
 
 demo → demonstration-centred AutoWS clouds → FSG → MuJoCo validation of every grasp → HDF5
 dataset (passing grasps in the main table, rejected ones with their failure in the side table)
-→ report. Each demo gets its own folder ``<out>/<demo id>/`` holding ``grasps.h5``,
-``report.html`` with its images, and ``summary.json``, which is written last: a folder with a
-summary made from the same demo, options and configs (:func:`run_key`) is finished, and
-re-running skips it (resumable); a run
+→ report. The demonstration's own grasp is validated beside them, under the same protocol and
+validator, and its verdict goes into the summary and the report (DESIGN §5): a low pass rate
+reads differently when the demo grasp itself does not hold. Each demo gets its own folder
+``<out>/<demo id>/`` holding ``grasps.h5``, ``report.html`` with its images, and
+``summary.json``, which is written last: a folder with a summary made from the same demo,
+options and configs (:func:`run_key`) is finished, and re-running skips it (resumable); a run
 interrupted before the summary leaves only complete files (every write is atomic), and the next
 run redoes that demo.
 
@@ -36,8 +38,9 @@ from augment.fsg.run import generate
 from augment.object_cloud import ObjectCloud, object_cloud
 from dexaug.pipeline.options import AugmentOptions, Progress, demo_dir, result_configs, run_key
 from dexaug.pipeline.report import write_report
-from dexaug.pipeline.summary import DemoSummary, finished
+from dexaug.pipeline.summary import DemoSummary, demo_grasp_text, demo_verdict, finished
 from sim.demo import Demo
+from sim.errors import DexaugError
 from sim.hand.model import Hand
 from sim.io import write_bytes_atomic
 from sim.pools import persistent_pool
@@ -45,7 +48,7 @@ from sim.validate.batch import ScenePenetration, validate_many
 from sim.world.objects import ObjectAsset, load_object
 from teleop.record.demos import extract_demos
 
-__all__ = ["augment_demo", "augment_session", "demo_fingers", "generate_grasps"]
+__all__ = ["augment_demo", "augment_session", "demo_fingers", "generate_grasps", "validate_demo_grasp"]
 
 log = logging.getLogger(__name__)
 
@@ -107,8 +110,15 @@ def augment_demo(demo: Demo, out_root: Path | str, opts: AugmentOptions | None =
         total = len(res.grasps)
         results = validate_many(hand.name, obj.name, [g.grasp for g in res.grasps],
                                 opts.validate, workers=opts.workers,
+                                squeeze_convention=opts.squeeze_convention,
                                 progress=lambda k: tick("validate", k, total))
     timings["validate"] = time.perf_counter() - t0
+    demo_grasp = None
+    if opts.validate:
+        t0 = time.perf_counter()
+        demo_grasp = validate_demo_grasp(hand.name, obj.name, demo, opts.validate,
+                                         opts.squeeze_convention)
+        timings["demo_grasp"] = time.perf_counter() - t0
 
     provenance = {"hand": hand.name, "demo_source": str(demo.source), "seed": opts.seed,
                   "options": json.dumps(asdict(opts)), "run_key": key, **configs,
@@ -133,7 +143,7 @@ def augment_demo(demo: Demo, out_root: Path | str, opts: AugmentOptions | None =
         run_key=key, requested=opts.n, generated=len(res.grasps),
         passed=len(kept) if results is not None else 0, failures=dict(failures),
         fsg_stopped=res.stopped, timings_s=timings, metrics=metrics, dataset=str(data_path),
-        report=None)
+        report=None, demo_grasp=demo_grasp)
     if opts.gallery > 0:
         t0 = time.perf_counter()
         tick("report", 0, 1)
@@ -143,9 +153,25 @@ def augment_demo(demo: Demo, out_root: Path | str, opts: AugmentOptions | None =
         timings["report"] = time.perf_counter() - t0
     write_bytes_atomic(folder / "summary.json",
                        (json.dumps(summary.to_json(), indent=1) + "\n").encode())
-    log.info("%s: %d of %d generated grasps passed %s (%s)", demo.id, summary.passed,
-             summary.generated, opts.validate, folder)
+    log.info("%s: %d of %d generated grasps passed %s; demo grasp %s (%s)", demo.id,
+             summary.passed, summary.generated, opts.validate, demo_grasp_text(demo_grasp), folder)
     return summary
+
+
+def validate_demo_grasp(hand: str, obj: str, demo: Demo, protocol: str,
+                        squeeze_convention: str | None = None) -> dict[str, Any]:
+    """The verdict (:func:`~dexaug.pipeline.summary.demo_verdict`) of ``demo``'s own grasp
+    under ``protocol``, checked by the validator the augmented grasps get (``validate_many``,
+    default config, in this process). A grasp that cannot be validated at all (joint vector
+    of another hand, a broken quaternion) is reported failed with the reason: this is a
+    diagnostic beside the augmentation and never fails it."""
+    try:
+        (r,) = validate_many(hand, obj, [demo.grasp], protocol, workers=1,
+                             squeeze_convention=squeeze_convention)
+    except DexaugError as exc:
+        log.warning("%s: the demo grasp could not be validated: %s", demo.id, exc)
+        return demo_verdict(protocol, False, f"not validated: {exc}")
+    return demo_verdict(protocol, r.passed, r.failure, r.displacement_m, r.rotation_rad)
 
 
 def demo_fingers(demo: Demo) -> tuple[str, ...] | None:

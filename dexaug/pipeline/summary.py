@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -15,7 +16,7 @@ from typing import Any
 from dexaug.pipeline.options import AugmentOptions, run_key
 from sim.demo import Demo
 
-__all__ = ["DemoSummary", "finished"]
+__all__ = ["DemoSummary", "demo_grasp_text", "demo_verdict", "finished"]
 
 log = logging.getLogger(__name__)
 
@@ -23,7 +24,10 @@ log = logging.getLogger(__name__)
 @dataclass
 class DemoSummary:
     """What an augmentation produced (``summary.json``): counts, failure reasons, metric
-    means of the kept grasps, timings (seconds) and where the files are."""
+    means of the kept grasps, timings (seconds), where the files are, and ``demo_grasp``: the
+    demonstration's own grasp under the same protocol (:func:`demo_verdict`; None when the run
+    did not validate, or the summary predates the check), so a pass rate can be read against
+    whether the grasp it was augmented from holds at all (DESIGN §5)."""
 
     demo_id: str
     hand: str
@@ -39,17 +43,47 @@ class DemoSummary:
     metrics: dict[str, float]
     dataset: str
     report: str | None
+    demo_grasp: dict[str, Any] | None = None
     skipped: bool = False
 
     @property
     def validated_per_min(self) -> float:
         """Passing grasps per minute of augmentation proper (workspace + FSG + validation; the
-        report's rendering is not part of the throughput)."""
-        total = sum(v for k, v in self.timings_s.items() if k != "report")
+        report's rendering and the demo grasp's own check produce no grasp and are not part of
+        the throughput)."""
+        total = sum(v for k, v in self.timings_s.items() if k not in ("report", "demo_grasp"))
         return 60.0 * self.passed / total if total > 0 else 0.0
 
     def to_json(self) -> dict[str, Any]:
         return {k: v for k, v in asdict(self).items() if k != "skipped"}
+
+
+def demo_verdict(protocol: str, passed: bool, failure: str | None,
+                 displacement_m: float = math.nan, rotation_rad: float = math.nan) -> dict[str, Any]:
+    """The ``demo_grasp`` entry of a summary: the demo grasp's verdict under ``protocol``, why
+    it failed, and how far the object moved (metres) and turned (degrees) relative to the hand.
+    Plain JSON: metrics never measured (NaN, e.g. a grasp rejected for penetration before
+    simulating) become None, since the dashboard's browser cannot parse NaN."""
+    def finite(x: float) -> float | None:
+        return float(x) if math.isfinite(x) else None
+
+    return {"protocol": protocol, "passed": bool(passed),
+            "failure": None if failure is None else str(failure),
+            "displacement_m": finite(displacement_m),
+            "rotation_deg": finite(math.degrees(rotation_rad))}
+
+
+def demo_grasp_text(verdict: dict[str, Any] | None) -> str:
+    """One line for people (the report, the dashboard): ``"passed"`` or ``"failed (reason)"``,
+    then the protocol and the drift measured, e.g. ``"failed (slipped) — lift-drop; the object
+    moved 21.0 mm and turned 3.2° in the hand"``. One formatter, so both pages say the same."""
+    if verdict is None:
+        return "not validated (validation was off, or the run predates this check)"
+    head = "passed" if verdict["passed"] else f"failed ({verdict['failure']})"
+    disp, rot = verdict.get("displacement_m"), verdict.get("rotation_deg")
+    drift = "" if disp is None or rot is None else \
+        f"; the object moved {1e3 * disp:.1f} mm and turned {rot:.1f}° in the hand"
+    return f"{head} — {verdict['protocol']}{drift}"
 
 
 def finished(folder: Path | str, demo: Demo, opts: AugmentOptions) -> DemoSummary | None:

@@ -269,17 +269,18 @@ class Hand:
                                   "transmission that is not a joint or a fixed tendon")
         return a_mat
 
-    def ctrl_for(self, q: np.ndarray) -> np.ndarray:
+    def ctrl_for(self, q: np.ndarray, *, clip: bool = True) -> np.ndarray:
         """Actuator controls whose steady state (zero actuator force at rest) is joint vector q.
 
         Works for position actuators and general actuators with an affine bias:
-        gain·ctrl + b0 + b1·length = 0 ⇒ ctrl = −(b0 + b1·length)/gain, clipped to ctrlrange.
+        gain·ctrl + b0 + b1·length = 0 ⇒ ctrl = −(b0 + b1·length)/gain, clipped to ctrlrange
+        with ``clip`` (a scene whose actuators have other ranges clips itself).
         """
         m = self.model
         length = self._transmission @ self.check_q(q)
         gain = m.actuator_gainprm[:, 0]
         ctrl = -(m.actuator_biasprm[:, 0] + m.actuator_biasprm[:, 1] * length) / gain
-        limited = m.actuator_ctrllimited.astype(bool)
+        limited = m.actuator_ctrllimited.astype(bool) & clip
         ctrl[limited] = np.clip(ctrl[limited], m.actuator_ctrlrange[limited, 0],
                                 m.actuator_ctrlrange[limited, 1])
         return ctrl

@@ -63,11 +63,11 @@ class ScenePenetration:
         return v.penetration_m(grasp) > v.config.common.max_penetration_m
 
 
-def _validate_chunk(args: tuple[str, str, str | None, Sequence[Grasp], str]
+def _validate_chunk(args: tuple[str, str, str | None, Sequence[Grasp], str, str | None]
                     ) -> list[ValidationResult]:
-    hand, obj, config_path, grasps, protocol = args
+    hand, obj, config_path, grasps, protocol, convention = args
     v = cached_validator(hand, obj, config_path)
-    return [v.validate(g, protocol) for g in grasps]
+    return [v.validate(g, protocol, squeeze_convention=convention) for g in grasps]
 
 
 def default_workers() -> int:
@@ -76,22 +76,24 @@ def default_workers() -> int:
 
 def validate_many(hand: str, obj: str, grasps: Sequence[Grasp], protocol: str = "lift-drop", *,
                   workers: int | None = None, config_path: Path | None = None,
+                  squeeze_convention: str | None = None,
                   progress: Callable[[int], None] | None = None) -> list[ValidationResult]:
     """Validate ``grasps`` of hand config ``hand`` on object ``obj`` with ``workers`` processes
-    (default: all cores). ``progress(n_done)`` is called as results arrive."""
+    (default: all cores). ``squeeze_convention`` (dgb) overrides the config's;
+    ``progress(n_done)`` is called as results arrive."""
     workers = workers or default_workers()
     cfg = str(config_path) if config_path else None
     if workers == 1 or len(grasps) <= 1:
         v = cached_validator(hand, obj, cfg)
         out = []
         for g in grasps:
-            out.append(v.validate(g, protocol))
+            out.append(v.validate(g, protocol, squeeze_convention=squeeze_convention))
             if progress:
                 progress(len(out))
         return out
     # small chunks: progress stays live and the two workers finish close together
     size = max(1, min(16, len(grasps) // (workers * 4)))
-    chunks = [(hand, obj, cfg, list(grasps[i:i + size]), protocol)
+    chunks = [(hand, obj, cfg, list(grasps[i:i + size]), protocol, squeeze_convention)
               for i in range(0, len(grasps), size)]
     results: list[ValidationResult] = []
     for part in persistent_pool(workers, preload=(__name__,)).map(_validate_chunk, chunks):

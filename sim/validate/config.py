@@ -1,7 +1,8 @@
 """The validator's parameters: ``configs/validate.toml`` read into frozen dataclasses.
 
-One section per part of a validation: ``[common]`` (placement, closing, contacts, grasp wrench
-space), ``[lift_drop]`` and ``[six_dir]`` (each protocol's physics and limits). Every key is
+One section per part of a validation: ``[common]`` (placement, closing, contacts, servos, grasp
+wrench space of lift-drop and six-dir), ``[lift_drop]`` and ``[six_dir]`` (each protocol's
+physics and limits) and ``[dgb]`` (DexGraspBench's protocol, self-contained). Every key is
 checked on load (unknown keys and out-of-range values raise ``ConfigError`` naming the file and
 key), so a validator never runs on a misspelt setting. Units: metres, seconds, newtons, radians
 (the TOML gives rotation limits in degrees, converted here).
@@ -14,14 +15,17 @@ from pathlib import Path
 
 import numpy as np
 
-from sim.config import load_toml
+from sim.config import Section, load_toml
 from sim.paths import CONFIG_DIR
+from sim.world.hand_spec import ServoSettings
 from sim.world.object_spec import ContactParams
 
-__all__ = ["GRAVITY_MPS2", "PROTOCOLS", "VALIDATE_TOML", "CommonParams", "LiftDropParams",
-           "SixDirParams", "ValidateConfig"]
+__all__ = ["GRAVITY_MPS2", "PROTOCOLS", "SQUEEZE_CONVENTIONS", "VALIDATE_TOML", "CommonParams",
+           "DgbParams", "LiftDropParams", "SixDirParams", "ValidateConfig"]
 
-PROTOCOLS = ("lift-drop", "six-dir")
+PROTOCOLS = ("lift-drop", "six-dir", "dgb")
+#: how a grasp's pregrasp and squeeze are made when it does not carry them (sim.validate.stages)
+SQUEEZE_CONVENTIONS = ("dexaug", "bodex", "dgb-rule")
 VALIDATE_TOML = CONFIG_DIR / "validate.toml"
 GRAVITY_MPS2 = 9.81
 
@@ -37,7 +41,7 @@ class CommonParams:
     close_time_s: float
     settle_time_s: float
     pin_while_closing: bool
-    servo_kp_scale: float
+    servos: ServoSettings
     contact: ContactParams
     gws_mu: float
 
@@ -50,6 +54,7 @@ class LiftDropParams:
     lift_time_s: float
     hold_time_s: float
     drop_time_s: float
+    drop_max_time_s: float
     max_displacement_m: float
     max_rotation_rad: float
     drop_min_fall_m: float
@@ -67,25 +72,92 @@ class SixDirParams:
 
 
 @dataclass(frozen=True)
+class DgbParams:
+    """DexGraspBench's fc evaluation (``[dgb]``): its own contacts, servos, object mass (None:
+    the object's real mass), solver, penetration filter, closing stages and pushes."""
+
+    object_mass_kg: float | None
+    contact: ContactParams
+    servos: ServoSettings
+    weld_solref: tuple[float, float]
+    timestep_s: float
+    impratio: float
+    noslip_iterations: int
+    solver_iterations: int
+    max_penetration_m: float
+    stage_increments: int
+    steps_per_increment: int
+    force_per_kg: float
+    push_time_s: float
+    check_every_steps: int
+    max_displacement_m: float
+    max_rotation_rad: float
+    squeeze_convention: str
+
+
+def _contact(sec: Section) -> ContactParams:
+    friction = tuple(sec.floats("friction", 3))
+    if friction[0] <= 0.0:  # the grip force is weight / friction
+        raise sec.error("friction", f"sliding friction must be > 0, got {friction[0]}")
+    solref, solimp = tuple(sec.floats("solref", 2)), tuple(sec.floats("solimp", 3))
+    if solref[0] <= 0 or not 0 < solimp[0] <= solimp[1] < 1 or solimp[2] <= 0:
+        raise sec.error("solref", f"expected solref time constant > 0 and 0 < dmin ≤ dmax < 1, "
+                        f"width > 0; got solref {solref}, solimp {solimp}")
+    return ContactParams(friction=friction, solref=solref, solimp=solimp)
+
+
+def _load_dgb(sec: Section) -> DgbParams:
+    sec.reject_unknown({"object_mass_kg", "friction", "solref", "solimp", "servo_kp",
+                        "servo_force_limit", "weld_solref", "timestep_s", "impratio",
+                        "noslip_iterations", "solver_iterations", "max_penetration_m",
+                        "stage_increments", "steps_per_increment", "force_per_kg", "push_time_s",
+                        "check_every_steps", "max_displacement_m", "max_rotation_deg",
+                        "squeeze_convention"})
+    mass = sec.data.get("object_mass_kg")
+    if mass == "real":
+        mass_kg = None
+    elif isinstance(mass, int | float) and not isinstance(mass, bool) and mass > 0:
+        mass_kg = float(mass)
+    else:
+        raise sec.error("object_mass_kg", f'expected a mass > 0 (kg) or "real", got {mass!r}')
+    convention = sec.str("squeeze_convention")
+    if convention not in SQUEEZE_CONVENTIONS:
+        raise sec.error("squeeze_convention", f"expected one of {SQUEEZE_CONVENTIONS}, got {convention!r}")
+    servos = ServoSettings(kp=sec.float("servo_kp", min=1e-6),
+                           force_limit=sec.float("servo_force_limit", min=1e-6), ctrl_limited=False)
+    return DgbParams(
+        object_mass_kg=mass_kg, contact=_contact(sec), servos=servos,
+        weld_solref=tuple(sec.floats("weld_solref", 2)),
+        timestep_s=sec.float("timestep_s", min=1e-4, max=0.02), impratio=sec.float("impratio", min=1.0),
+        noslip_iterations=sec.int("noslip_iterations", min=0),
+        solver_iterations=sec.int("solver_iterations", min=1),
+        max_penetration_m=sec.float("max_penetration_m", min=0.0),
+        stage_increments=sec.int("stage_increments", min=1),
+        steps_per_increment=sec.int("steps_per_increment", min=1),
+        force_per_kg=sec.float("force_per_kg", min=0.0), push_time_s=sec.float("push_time_s", min=0.0),
+        check_every_steps=sec.int("check_every_steps", min=1),
+        max_displacement_m=sec.float("max_displacement_m", min=0.0),
+        max_rotation_rad=np.deg2rad(sec.float("max_rotation_deg", min=0.0, max=180.0)),
+        squeeze_convention=convention)
+
+
+@dataclass(frozen=True)
 class ValidateConfig:
     common: CommonParams
     lift_drop: LiftDropParams
     six_dir: SixDirParams
+    dgb: DgbParams
 
     @classmethod
     def load(cls, path: Path | str = VALIDATE_TOML) -> ValidateConfig:
         root = load_toml(path)
-        root.reject_unknown({"common", "lift_drop", "six_dir"})
+        root.reject_unknown({"common", "lift_drop", "six_dir", "dgb"})
         c = root.section("common")
         c.reject_unknown({"max_penetration_m", "contact_search_m", "pregrasp_backoff_m",
                           "squeeze_depth_m", "grip_safety", "min_grip_force_n", "close_time_s",
                           "settle_time_s", "pin_while_closing", "servo_kp_scale", "friction",
-                          "solref",
-                          "gws_mu"})
+                          "solref", "solimp", "gws_mu"})
         pos = {"min": 0.0}
-        friction = tuple(c.floats("friction", 3))
-        if friction[0] <= 0.0:  # the grip force is weight / friction
-            raise c.error("friction", f"sliding friction must be > 0, got {friction[0]}")
         common = CommonParams(
             max_penetration_m=c.float("max_penetration_m", **pos),
             contact_search_m=c.float("contact_search_m", **pos),
@@ -96,18 +168,19 @@ class ValidateConfig:
             close_time_s=c.float("close_time_s", min=1e-3),
             settle_time_s=c.float("settle_time_s", **pos),
             pin_while_closing=c.bool("pin_while_closing"),
-            servo_kp_scale=c.float("servo_kp_scale", min=1e-3),
-            contact=ContactParams(friction=friction, solref=tuple(c.floats("solref", 2))),
+            servos=ServoSettings(kp_scale=c.float("servo_kp_scale", min=1e-3)),
+            contact=_contact(c),
             gws_mu=c.float("gws_mu", min=0.0))
         ld = root.section("lift_drop")
         ld.reject_unknown({"timestep_s", "impratio", "lift_height_m", "lift_time_s", "hold_time_s",
-                           "drop_time_s", "max_displacement_m", "max_rotation_deg",
-                           "drop_min_fall_m"})
+                           "drop_time_s", "drop_max_time_s", "max_displacement_m",
+                           "max_rotation_deg", "drop_min_fall_m"})
         lift = LiftDropParams(
             timestep_s=ld.float("timestep_s", min=1e-4, max=0.02),
             impratio=ld.float("impratio", min=1.0),
             lift_height_m=ld.float("lift_height_m", **pos), lift_time_s=ld.float("lift_time_s", min=1e-3),
             hold_time_s=ld.float("hold_time_s", **pos), drop_time_s=ld.float("drop_time_s", **pos),
+            drop_max_time_s=ld.float("drop_max_time_s", **pos),
             max_displacement_m=ld.float("max_displacement_m", **pos),
             max_rotation_rad=np.deg2rad(ld.float("max_rotation_deg", min=0.0, max=180.0)),
             drop_min_fall_m=ld.float("drop_min_fall_m", **pos))
@@ -121,4 +194,4 @@ class ValidateConfig:
             force_per_kg=sd.float("force_per_kg", **pos), push_time_s=sd.float("push_time_s", **pos),
             max_displacement_m=sd.float("max_displacement_m", **pos),
             max_rotation_rad=np.deg2rad(sd.float("max_rotation_deg", min=0.0, max=180.0)))
-        return cls(common, lift, six)
+        return cls(common, lift, six, _load_dgb(root.section("dgb")))

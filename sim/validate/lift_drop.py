@@ -3,7 +3,8 @@
 After closing, gravity is turned on and the hand's mocap base rises ``lift_height_m`` in small
 chunks; the grasp slips when the object moves or turns in the palm past the limits during the
 lift or the hold that follows. A grasp that held must also release: the hand opens and the
-object must fall out of the palm, or it was held by interpenetration (``stuck``). Units: metres,
+object must move out of the palm along the palm normal, or it was held by interpenetration
+(``stuck``). Units: metres,
 seconds, radians.
 """
 
@@ -13,11 +14,12 @@ import mujoco
 import numpy as np
 
 from sim.hand.model import Hand
-from sim.transforms import rotate
+from sim.transforms import quat_angle, rotate
 from sim.validate.config import GRAVITY_MPS2, LiftDropParams
 from sim.validate.result import Failure, PhaseResult, ValidationResult
 from sim.validate.stepping import drift, relative_object_pose, run_for
 from sim.validate.targets import GraspTargets
+from sim.world.contacts import contacts_between
 from sim.world.scene import Scene
 
 __all__ = ["run_lift_drop"]
@@ -52,33 +54,59 @@ def run_lift_drop(scene: Scene, hand: Hand, p: LiftDropParams, targets: GraspTar
     if not ok:
         result.failure = Failure.SLIPPED
         return
-    _release(scene, hand, p, targets, ref_pos, ref_quat, result)
+    _release(scene, hand, p, targets, ref_quat, result)
+
+
+#: joint speed (rad/s or m/s) below which a hand counts as done opening
+_OPENING_SPEED = 0.05
+
+
+def _still_opening(scene: Scene) -> bool:
+    return bool(np.abs(scene.data.qvel[scene.hand_dadr]).max(initial=0.0) > _OPENING_SPEED)
 
 
 def _release(scene: Scene, hand: Hand, p: LiftDropParams, targets: GraspTargets,
-             ref_pos: np.ndarray, ref_quat: np.ndarray, result: ValidationResult) -> None:
+             ref_quat: np.ndarray, result: ValidationResult) -> None:
     """Open the hand and pull the object out of the palm: a real grasp lets go.
 
-    Gravity is turned to point out of the palm face (frame_palm +y) while the fingers open
-    to the pregrasp and then to the hand's open pose, so a wrap grasp or a palm-up grasp
-    releases too; an object that stays put is held by interpenetration (DESIGN §5 drops
-    along world −z, which a palm-up grasp never passes; see the closing note).
+    The release direction is frame_palm +y (out of the palm face, toward the pulps: DESIGN §3)
+    when the release starts; gravity is turned to point along it while the fingers open to the
+    pregrasp and then to the hand's open pose, so a wrap grasp or a palm-up grasp releases too.
+    The release lasts ``drop_time_s`` and longer while the fingers are still moving (a gripper
+    whose servo opens slowly), at most ``drop_max_time_s``, and ends as soon as the object has
+    left. The grasp passes when the object has moved at least ``drop_min_fall_m`` *along* that
+    direction, away from the palm, and touches the hand no more: an object that stays put is
+    held by interpenetration, and one pulled into the palm (as a hand whose palm frame points
+    backwards would pull it, however far it moves) has not been released either (``stuck``).
     """
-    m = scene.model
+    m, d = scene.model, scene.data
     _, palm_quat = scene.palm_world_pose()
-    m.opt.gravity[:] = GRAVITY_MPS2 * rotate(palm_quat, np.array([0.0, 1.0, 0.0]))
-    ctrl_sq = hand.ctrl_for(targets.squeeze)
-    ctrl_open = hand.ctrl_for(hand.open_pose)
-    run_for(scene, 0.5 * p.drop_time_s, ctrl_sq, ctrl_open)
-    fall, turn = drift(scene, ref_pos, ref_quat)
-    steps = round(0.5 * p.drop_time_s / m.opt.timestep)
-    chunk = max(steps // 10, 1)
-    for k in range(0, steps, chunk):  # stop as soon as the object has left
-        if fall >= p.drop_min_fall_m:
+    release_dir = rotate(palm_quat, np.array([0.0, 1.0, 0.0]))
+    # the centre of mass, not the object frame's origin: a long object turning as it falls
+    # (a screwdriver whose origin is at one end) swings its origin toward the palm
+    start_com = d.xipos[scene.obj_body].copy()
+    m.opt.gravity[:] = GRAVITY_MPS2 * release_dir
+
+    def moved_out() -> float:
+        return float((d.xipos[scene.obj_body] - start_com) @ release_dir)
+
+    def released(fall_m: float) -> bool:
+        touching = contacts_between(m, d, scene.hand_geom_mask, scene.obj_geom_mask).dist <= 0.0
+        return fall_m >= p.drop_min_fall_m and not touching.any()
+
+    run_for(scene, 0.5 * p.drop_time_s, scene.ctrl_for(targets.squeeze), scene.ctrl_for(hand.open_pose))
+    fall, elapsed_s = moved_out(), 0.5 * p.drop_time_s
+    chunk = max(round(0.05 / m.opt.timestep), 1)
+    # until the object has left; past drop_time_s only while the fingers are still opening
+    # (a slow gripper), at most drop_max_time_s
+    while not (dropped := released(fall)) and elapsed_s < p.drop_max_time_s:
+        if elapsed_s >= p.drop_time_s and not _still_opening(scene):
             break
-        mujoco.mj_step(m, scene.data, nstep=min(chunk, steps - k))
-        fall, turn = drift(scene, ref_pos, ref_quat)
-    dropped = bool(fall >= p.drop_min_fall_m)
+        mujoco.mj_step(m, d, nstep=chunk)
+        elapsed_s += chunk * m.opt.timestep
+        fall = moved_out()
+    _, rel_quat = relative_object_pose(scene)
+    turn = float(quat_angle(rel_quat, ref_quat))
     result.phases["drop"] = PhaseResult(dropped, fall, turn)
     result.passed = dropped
     result.failure = None if dropped else Failure.STUCK

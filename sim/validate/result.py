@@ -46,13 +46,20 @@ class ValidationResult:
     displacement_m: float = float("nan")
     rotation_rad: float = float("nan")
     phases: dict[str, PhaseResult] = field(default_factory=dict)
+    #: how the fingers closed: "free" or "pinned" (the object held still while closing)
+    closing: str | None = None
+    #: how pregrasp and squeeze were made ("given", "dexaug", "bodex", "dgb-rule")
+    squeeze_convention: str | None = None
+    #: the joint vectors closed from and to (radians, full hand vectors), when simulated
+    pregrasp: np.ndarray | None = None
+    squeeze: np.ndarray | None = None
     contact_pos_obj: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     contact_normal_obj: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
     def summary(self) -> dict[str, object]:
         """Flat, JSON-friendly view (no arrays) for tables and logs."""
         out = asdict(self)
-        out.pop("contact_pos_obj")
-        out.pop("contact_normal_obj")
+        for key in ("contact_pos_obj", "contact_normal_obj", "pregrasp", "squeeze"):
+            out.pop(key)
         out["phases"] = {k: asdict(v) for k, v in self.phases.items()}
         return out

@@ -1,16 +1,20 @@
-"""Physical grasp validation in MuJoCo: the ``lift-drop`` and ``six-dir`` protocols (DESIGN §5).
+"""Physical grasp validation in MuJoCo: the ``lift-drop``, ``six-dir`` and ``dgb`` protocols
+(DESIGN §5).
 
 The augmenter only checks grasps analytically; a grasp is kept when it also holds in simulation.
 :class:`Validator` places a grasp (palm pose in the object frame + joint vector) in a scene of
 the hand and the object, rejects it when the hand penetrates the object, derives its pregrasp
 and squeeze targets (:mod:`sim.validate.targets`), closes the fingers onto the object, measures
 the contacts and runs one protocol (:mod:`sim.validate.lift_drop`, :mod:`sim.validate.six_dir`).
+``dgb`` is DexGraspBench's evaluation with its own scene (floating palm, kp 5 / ±3 N·m servos,
+0.1 kg object, μ 0.6) and closing (:mod:`sim.validate.dgb`, :mod:`sim.validate.stages`).
 
-The validation scenes multiply the hand's servo stiffness kp by ``servo_kp_scale`` (5, as
-DexGraspBench does for the Menagerie hands): kp is the controller's gain, and at the models'
+lift-drop and six-dir multiply each hand servo's own kp by ``servo_kp_scale`` (5 by default;
+force limits stay the model's): kp is the controller's gain, and at the Menagerie models'
 ≈ 1 N·m/rad a grasp that holds the object still turns it past the 15° limit under its own
-weight (measured on 60 soup-can grasps: 45 % pass at kp × 1, 77 % at × 5; force limits stay).
-Simulation is deterministic: the same grasp gives the same result on any worker.
+weight. Every scene's contact values are set on hand and object geoms alike, so they are what
+every contact simulates. Simulation is deterministic: the same grasp gives the same result on
+any worker.
 """
 
 from __future__ import annotations
@@ -23,9 +27,11 @@ from sim.hand.model import Hand
 from sim.metrics.gws import gws_metrics
 from sim.transforms import pose_inv, pose_mul, rotate
 from sim.validate.config import PROTOCOLS, ValidateConfig
+from sim.validate.dgb import run_dgb
 from sim.validate.lift_drop import run_lift_drop
 from sim.validate.result import Failure, ValidationResult
 from sim.validate.six_dir import run_six_dir
+from sim.validate.stages import GraspStages, grasp_stages
 from sim.validate.stepping import run_for
 from sim.validate.targets import GraspTargets, finger_joint_mask, targets_from_contacts
 from sim.world.contacts import Contacts, contacts_between, merge_nearby
@@ -49,18 +55,29 @@ class Validator:
         if protocol not in PROTOCOLS:
             raise ValueError(f"unknown protocol {protocol!r}; expected one of {PROTOCOLS}")
         if protocol not in self._scenes:
-            if protocol == "six-dir":
-                six = self.config.six_dir
-                physics = PhysicsOptions(timestep_s=six.timestep_s, impratio=six.impratio,
-                                         noslip_iterations=six.noslip_iterations)
-            else:
-                lift = self.config.lift_drop
-                physics = PhysicsOptions(timestep_s=lift.timestep_s, impratio=lift.impratio)
-            scene = Scene(self.hand, self.obj, contact=self.config.common.contact,
-                          physics=physics)
-            scene.scale_servo_stiffness(self.config.common.servo_kp_scale)
-            self._scenes[protocol] = scene
+            self._scenes[protocol] = self._build_scene(protocol)
         return self._scenes[protocol]
+
+    def _build_scene(self, protocol: str) -> Scene:
+        """The scene of a protocol, with the physics, contacts and servos its config states."""
+        common = self.config.common
+        if protocol == "dgb":
+            p = self.config.dgb
+            physics = PhysicsOptions(timestep_s=p.timestep_s, impratio=p.impratio,
+                                     noslip_iterations=p.noslip_iterations,
+                                     solver_iterations=p.solver_iterations,
+                                     weld_solref=p.weld_solref, sparse_jacobian=None)
+            return Scene(self.hand, self.obj, contact=p.contact, physics=physics, servos=p.servos,
+                         floating_palm=True, object_mass_kg=p.object_mass_kg, contact_on_hand=True)
+        if protocol == "six-dir":
+            six = self.config.six_dir
+            physics = PhysicsOptions(timestep_s=six.timestep_s, impratio=six.impratio,
+                                     noslip_iterations=six.noslip_iterations)
+        else:
+            lift = self.config.lift_drop
+            physics = PhysicsOptions(timestep_s=lift.timestep_s, impratio=lift.impratio)
+        return Scene(self.hand, self.obj, contact=common.contact, physics=physics,
+                     servos=common.servos, contact_on_hand=True)
 
     # ------------------------------------------------------------------------------- set-up
 
@@ -68,15 +85,18 @@ class Validator:
         """Reset the scene with the object at home and the hand at the grasp's palm pose."""
         m, d = scene.model, scene.data
         mujoco.mj_resetData(m, d)
-        obj_quat = np.array([1.0, 0.0, 0.0, 0.0])
-        scene.set_object_pose(OBJECT_HOME, obj_quat)
-        palm_pos, palm_quat = pose_mul(OBJECT_HOME, obj_quat, grasp.palm_pos, grasp.palm_quat_wxyz)
-        base_pos, base_quat = self.hand.base_pose_for_palm(palm_pos, palm_quat, q)
-        scene.set_hand_pose(base_pos, base_quat)
+        scene.set_object_pose(OBJECT_HOME, np.array([1.0, 0.0, 0.0, 0.0]))
+        scene.set_palm_pose(*self.palm_world(grasp), q)
         scene.set_hand_joints(q)
         scene.set_hand_ctrl(q)
         m.opt.gravity[:] = 0.0
         mujoco.mj_forward(m, d)
+
+    @staticmethod
+    def palm_world(grasp: Grasp) -> tuple[np.ndarray, np.ndarray]:
+        """frame_palm of ``grasp`` in the world (metres, wxyz), the object being at home."""
+        return pose_mul(OBJECT_HOME, np.array([1.0, 0.0, 0.0, 0.0]), grasp.palm_pos,
+                        grasp.palm_quat_wxyz)
 
     def _hand_object_contacts(self, scene: Scene, with_force: bool = False) -> Contacts:
         return contacts_between(scene.model, scene.data, scene.hand_geom_mask, scene.obj_geom_mask,
@@ -106,21 +126,33 @@ class Validator:
         return targets_from_contacts(scene, self.hand, q, self._near_contacts(scene),
                                      self.config.common, self._finger_mask)
 
+    def stages(self, grasp: Grasp, convention: str | None = None) -> GraspStages:
+        """Pregrasp, grasp and squeeze of ``grasp``: its own when it carries them, else made by
+        ``convention`` (default: ``[dgb] squeeze_convention``; :mod:`sim.validate.stages`),
+        whose ``dexaug`` targets come from the lift-drop scene's contacts."""
+        q = self.hand.check_q(grasp.joints, "grasp joints")
+
+        def derive() -> GraspTargets:
+            scene = self.scene("lift-drop")
+            self._place(scene, grasp, q)
+            return self.derive_targets(scene, q)
+
+        return grasp_stages(grasp, convention or self.config.dgb.squeeze_convention, derive)
+
     def _close(self, scene: Scene, targets: GraspTargets) -> None:
         """From the pregrasp, close the fingers onto the squeeze target with gravity off.
 
-        With ``pin_while_closing`` the object is held still while the fingers close, as the
-        table or the other hand holds a real object while a grasp is acquired: fingers reach
-        the object at different times, and the first one to arrive would otherwise push a free,
-        weightless object out of the hand before the others touch — a failure of the closing
-        sequence, not of the grasp. It is released for the settle phase, where an unbalanced
-        squeeze still moves it before the lift measures its pose in the palm."""
+        By default the object is free while the fingers close (DESIGN §5): a grasp whose first
+        finger to arrive shoves the object out of the hand fails. ``pin_while_closing`` (a named
+        option; results record it) holds the object still until the settle phase instead, as a
+        table or another hand would while a grasp is acquired; an unbalanced squeeze still moves
+        it during the settle, before the lift measures its pose in the palm."""
         scene.set_hand_joints(targets.pregrasp)
         scene.set_hand_ctrl(targets.pregrasp)
         mujoco.mj_forward(scene.model, scene.data)
         common = self.config.common
-        ctrl_pre = self.hand.ctrl_for(targets.pregrasp)
-        ctrl_sq = self.hand.ctrl_for(targets.squeeze)
+        ctrl_pre = scene.ctrl_for(targets.pregrasp)
+        ctrl_sq = scene.ctrl_for(targets.squeeze)
         pin = scene.object_pose() if common.pin_while_closing else None
         run_for(scene, common.close_time_s, ctrl_pre, ctrl_sq, pin=pin)
         run_for(scene, common.settle_time_s)
@@ -153,17 +185,24 @@ class Validator:
         self._place(scene, grasp, q)
         return self._hand_object_contacts(scene).max_penetration_m
 
-    def validate(self, grasp: Grasp, protocol: str = "lift-drop") -> ValidationResult:
-        """Validate one grasp; see the module docstring and DESIGN §5 for the protocols."""
+    def validate(self, grasp: Grasp, protocol: str = "lift-drop", *,
+                 squeeze_convention: str | None = None) -> ValidationResult:
+        """Validate one grasp; see the module docstring and DESIGN §5 for the protocols.
+        ``squeeze_convention`` (dgb only) overrides ``[dgb] squeeze_convention``."""
+        if protocol == "dgb":
+            return self._validate_dgb(grasp, squeeze_convention)
         penetration = self.penetration_m(grasp, protocol)
         q = self.hand.check_q(grasp.joints, "grasp joints")
         scene = self.scene(protocol)
         result = ValidationResult(protocol=protocol, passed=False, failure=None,
-                                  penetration_m=penetration)
+                                  penetration_m=penetration,
+                                  closing="pinned" if self.config.common.pin_while_closing else "free")
         if penetration > self.config.common.max_penetration_m:
             result.failure = Failure.PENETRATION
             return result
         targets = self.derive_targets(scene, q)
+        result.pregrasp, result.squeeze = targets.pregrasp, targets.squeeze
+        result.squeeze_convention = "dexaug"
         if targets.n_bodies_near == 0:
             result.failure = Failure.NO_CONTACT
             return result
@@ -176,6 +215,19 @@ class Validator:
             run_lift_drop(scene, self.hand, self.config.lift_drop, targets, result)
         else:
             run_six_dir(scene, self.config.six_dir, result)
+        return result
+
+    def _validate_dgb(self, grasp: Grasp, convention: str | None) -> ValidationResult:
+        """The benchmark's protocol on the grasp's stages (:mod:`sim.validate.dgb`)."""
+        stages = self.stages(grasp, convention)
+        scene = self.scene("dgb")
+        result = ValidationResult(protocol="dgb", passed=False, failure=None, penetration_m=0.0,
+                                  closing="free", squeeze_convention=stages.made_by,
+                                  pregrasp=stages.pregrasp, squeeze=stages.squeeze)
+        run_dgb(scene, self.config.dgb, self.palm_world(grasp), stages, result,
+                after_first_close=lambda: self._measure_contacts(scene, result))
+        if result.failure is None and not result.passed:
+            result.failure = Failure.SLIPPED
         return result
 
     def fingertip_contacts(self, grasp: Grasp) -> dict[str, np.ndarray | None]:

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import mujoco
 
 __all__ = ["BODY_NAME", "COLLISION_GROUP", "FREE_JOINT_NAME", "VISUAL_GROUP", "ContactParams",
-           "finish_spec"]
+           "apply_contact", "finish_spec", "is_collision"]
 
 BODY_NAME = "object"
 FREE_JOINT_NAME = "object_free"
@@ -24,8 +24,8 @@ COLLISION_GROUP = 3
 
 @dataclass(frozen=True)
 class ContactParams:
-    """Contact parameters of the object's collision geoms (MuJoCo ``friction``, ``solref``,
-    ``solimp``, ``condim``).
+    """Contact parameters of a scene's collision geoms, hand and object alike (MuJoCo
+    ``friction``, ``solref``, ``solimp``, ``condim``).
 
     The defaults replace the raw YCB values (friction 0.1, solref 0.001) that make grasps slip
     and contacts stiff enough to destabilise a 2–4 ms step. ``friction``: sliding, torsional,
@@ -49,21 +49,30 @@ class ContactParams:
             raise ValueError(f"ContactParams.condim: expected 1, 3, 4 or 6, got {self.condim}")
 
 
-def _is_collision(geom: mujoco.MjsGeom) -> bool:
+def is_collision(geom: mujoco.MjsGeom) -> bool:
     return geom.contype != 0 or geom.conaffinity != 0
 
 
-def finish_spec(spec: mujoco.MjSpec, contact: ContactParams) -> mujoco.MjSpec:
-    """Give collision geoms the contact parameters and group 3, visual geoms group 2 and no mass."""
+def apply_contact(spec: mujoco.MjSpec, contact: ContactParams) -> None:
+    """Give every collision geom of ``spec`` the contact parameters. A scene sets the same values
+    on hand and object geoms, so that MuJoCo's mixing of two geoms' values (the larger friction,
+    the mean solref/solimp at equal solmix) yields exactly these on every hand–object contact."""
     for geom in spec.geoms:
-        if _is_collision(geom):
-            geom.group = COLLISION_GROUP
+        if is_collision(geom):
             geom.friction = list(contact.friction)
             geom.solref = list(contact.solref)
             solimp = list(geom.solimp)
             solimp[:3] = contact.solimp
             geom.solimp = solimp
             geom.condim = contact.condim
+
+
+def finish_spec(spec: mujoco.MjSpec, contact: ContactParams) -> mujoco.MjSpec:
+    """Give collision geoms the contact parameters and group 3, visual geoms group 2 and no mass."""
+    apply_contact(spec, contact)
+    for geom in spec.geoms:
+        if is_collision(geom):
+            geom.group = COLLISION_GROUP
         else:
             geom.group = VISUAL_GROUP
             geom.mass = 0.0

@@ -15,7 +15,9 @@ import mujoco
 import numpy as np
 
 from sim.hand.model import Hand
-from sim.world.object_spec import ContactParams
+from sim.transforms import pose_inv, pose_mul
+from sim.world.hand_spec import ServoSettings, apply_servos, detach_palm
+from sim.world.object_spec import ContactParams, apply_contact
 from sim.world.objects import ObjectAsset
 
 HAND_PREFIX = "hand/"
@@ -33,11 +35,13 @@ class PhysicsOptions:
     cone: str = "elliptic"
     impratio: float = 10.0
     noslip_iterations: int = 0
+    solver_iterations: int = 100
     weld_solref: tuple[float, float] = (0.01, 1.0)
     #: constraint Jacobians stored sparse: the hand's fingers are separate kinematic branches,
     #: so a contact row touches a few of the ~36 dofs; measured on 60 screwdriver lift-drop
-    #: validations: 89–105 ms per grasp against 114 dense, same outcomes
-    sparse_jacobian: bool = True
+    #: validations: 89–105 ms per grasp against 114 dense, same outcomes. None: MuJoCo's
+    #: automatic choice (dense below 60 dofs), what the benchmark's scenes use.
+    sparse_jacobian: bool | None = True
 
 
 _INTEGRATORS = {"euler": mujoco.mjtIntegrator.mjINT_EULER,
@@ -48,19 +52,38 @@ _CONES = {"elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC, "pyramidal": mujoco.mjtCon
 
 
 class Scene:
-    """A compiled hand + object (+ table) world and the index maps to drive and read it."""
+    """A compiled hand + object (+ table) world and the index maps to drive and read it.
+
+    ``contact`` goes on the object's (and the table's) collision geoms, and with
+    ``contact_on_hand`` on the hand's too, so that it is what every hand–object contact
+    simulates (a validation scene); without it the hand keeps its model's own values (the
+    teleop scenes, whose hand is driven hard by the operator's tracking). ``servos`` sets the
+    hand's position servos (gains, force and control limits). ``floating_palm`` makes the palm
+    body the floating root: the joints on and above it are gone (the benchmark's wrist-less
+    hand). ``object_mass_kg`` rescales the object's mass and inertia to that mass (centre of
+    mass unchanged, as a uniform change of density does). Joint vectors and controls given to
+    a scene always hold all of the hand model's joints (``Hand.joint_names``); a joint the
+    scene does not have is ignored.
+    """
 
     def __init__(self, hand: Hand, obj: ObjectAsset | None, *, table: bool = False,
                  contact: ContactParams | None = None,
-                 physics: PhysicsOptions | None = None) -> None:
+                 physics: PhysicsOptions | None = None, servos: ServoSettings | None = None,
+                 floating_palm: bool = False, object_mass_kg: float | None = None,
+                 contact_on_hand: bool = False) -> None:
         self.hand = hand
         self.obj = obj
         self.table = table
         self.physics = physics or PhysicsOptions()
         self.contact = contact or ContactParams()
+        self.servos = servos
+        self.floating_palm = floating_palm
+        self.contact_on_hand = contact_on_hand
         self.model = self._compose().compile()
         self.data = mujoco.MjData(self.model)
         self._index()
+        if object_mass_kg is not None and obj is not None:
+            self._set_object_mass(object_mass_kg)
 
     # ------------------------------------------------------------------------------ composition
 
@@ -73,8 +96,10 @@ class Scene:
         world.option.cone = _CONES[opts.cone]
         world.option.impratio = opts.impratio
         world.option.noslip_iterations = opts.noslip_iterations
-        world.option.jacobian = (mujoco.mjtJacobian.mjJAC_SPARSE if opts.sparse_jacobian
-                                 else mujoco.mjtJacobian.mjJAC_DENSE)
+        world.option.iterations = opts.solver_iterations
+        world.option.jacobian = {True: mujoco.mjtJacobian.mjJAC_SPARSE,
+                                 False: mujoco.mjtJacobian.mjJAC_DENSE,
+                                 None: mujoco.mjtJacobian.mjJAC_AUTO}[opts.sparse_jacobian]
         world.visual.global_.offwidth = 1280
         world.visual.global_.offheight = 960
         world.worldbody.add_light(name="key", pos=[0.4, -0.6, 1.2], dir=[-0.3, 0.5, -1.0],
@@ -86,9 +111,19 @@ class Scene:
         base = world.worldbody.add_body(name="hand_base")
         base.add_freejoint(name="hand_free")
         hand_spec = self.hand.spec()
-        for key in ("timestep", "integrator", "cone", "impratio", "noslip_iterations"):
+        for key in ("timestep", "integrator", "cone", "impratio", "noslip_iterations",
+                    "iterations", "jacobian"):
             setattr(hand_spec.option, key, getattr(world.option, key))  # the scene's options rule
-        world.attach(hand_spec, prefix=HAND_PREFIX, frame=base.add_frame())
+        if self.contact_on_hand:
+            apply_contact(hand_spec, self.contact)
+        if self.servos is not None:
+            apply_servos(hand_spec, self.servos)
+        if self.floating_palm:
+            palm = detach_palm(hand_spec, self.hand.config.palm.body)
+            root = base.add_frame().attach_body(palm, HAND_PREFIX, "")
+            root.pos, root.quat = [0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0]  # base frame = palm body
+        else:
+            world.attach(hand_spec, prefix=HAND_PREFIX, frame=base.add_frame())
         for body in world.bodies:
             if body.name == "hand_base" or body.name.startswith(HAND_PREFIX):
                 body.gravcomp = 1.0
@@ -121,32 +156,42 @@ class Scene:
         return ((m.actuator_gaintype[acts] == int(mujoco.mjtGain.mjGAIN_FIXED))
                 & (m.actuator_biastype[acts] == int(mujoco.mjtBias.mjBIAS_AFFINE)))
 
-    def scale_servo_stiffness(self, scale: float) -> None:
-        """Multiply the hand's position-servo stiffness kp (N·m/rad or N/m per actuator) by
-        ``scale`` in this scene's model (it multiplies: once per scene); force limits, damping
-        and the other actuators stay."""
-        acts = self.hand_act[self.position_servos()]
-        self.model.actuator_gainprm[acts, 0] *= scale
-        self.model.actuator_biasprm[acts, 1] *= scale
+    def _set_object_mass(self, mass_kg: float) -> None:
+        """Scale the object body's mass and inertia to ``mass_kg`` (kilograms)."""
+        m, b = self.model, self.obj_body
+        factor = mass_kg / float(m.body_mass[b])
+        m.body_mass[b] *= factor
+        m.body_inertia[b] *= factor
+        mujoco.mj_setConst(m, self.data)
+        self.obj_mass_kg = float(m.body_subtreemass[b])
 
     def _index(self) -> None:
         m = self.model
         self.mocap_id = m.body("hand_target").mocapid[0]
         self.base_qadr = m.joint("hand_free").qposadr[0]
         self.base_dadr = m.joint("hand_free").dofadr[0]
-        self.hand_qadr = np.array([m.joint(HAND_PREFIX + n).qposadr[0]
-                                   for n in self.hand.joint_names])
-        self.hand_dadr = np.array([m.joint(HAND_PREFIX + n).dofadr[0]
-                                   for n in self.hand.joint_names])
+        joints = {m.joint(j).name for j in range(m.njnt)}
+        actuators = {m.actuator(a).name for a in range(m.nu)}
+        #: indices into Hand.joint_names / the hand model's actuators of what this scene has
+        self.hand_joint_kept = np.array([i for i, n in enumerate(self.hand.joint_names)
+                                         if HAND_PREFIX + n in joints], dtype=int)
+        self.hand_act_kept = np.array([a for a in range(self.hand.model.nu)
+                                       if HAND_PREFIX + self.hand.model.actuator(a).name in actuators],
+                                      dtype=int)
+        kept_names = [self.hand.joint_names[i] for i in self.hand_joint_kept]
+        self.hand_qadr = np.array([m.joint(HAND_PREFIX + n).qposadr[0] for n in kept_names], dtype=int)
+        self.hand_dadr = np.array([m.joint(HAND_PREFIX + n).dofadr[0] for n in kept_names], dtype=int)
         self.hand_act = np.array([m.actuator(HAND_PREFIX + self.hand.model.actuator(a).name).id
-                                  for a in range(self.hand.model.nu)], dtype=int)
+                                  for a in self.hand_act_kept], dtype=int)
         body_names = [m.body(b).name for b in range(m.nbody)]
         self.hand_body_mask = np.array([n == "hand_base" or n.startswith(HAND_PREFIX)
                                         for n in body_names])
         self.hand_geom_mask = self.hand_body_mask[m.geom_bodyid]
         # hand body id (scene) → hand model body id, for mapping contacts to fingers
-        self.scene_to_hand_body = {m.body(HAND_PREFIX + self.hand.model.body(b).name).id: b
-                                   for b in range(1, self.hand.model.nbody)}
+        names = {n: i for i, n in enumerate(body_names)}
+        self.scene_to_hand_body = {names[HAND_PREFIX + self.hand.model.body(b).name]: b
+                                   for b in range(1, self.hand.model.nbody)
+                                   if HAND_PREFIX + self.hand.model.body(b).name in names}
         if self.obj is not None:
             self.obj_body = m.body(OBJECT_PREFIX + "object").id
             self.obj_qadr = m.joint(OBJECT_PREFIX + "object_free").qposadr[0]
@@ -170,12 +215,33 @@ class Scene:
             d.qpos[self.base_qadr + 3:self.base_qadr + 7] = base_quat
             d.qvel[self.base_dadr:self.base_dadr + 6] = 0.0
 
+    def set_palm_pose(self, palm_pos: np.ndarray, palm_quat: np.ndarray, q: np.ndarray) -> None:
+        """Put the hand (mocap target and base) where frame_palm lands on (palm_pos, palm_quat)
+        in the world with joints ``q`` (full hand joint vector)."""
+        if self.floating_palm:   # the base is the palm body: undo frame_palm's fixed offset
+            cfg = self.hand.config.palm
+            inv_p, inv_q = pose_inv(cfg.pos, cfg.quat_wxyz)
+            base = pose_mul(np.asarray(palm_pos, float), np.asarray(palm_quat, float), inv_p, inv_q)
+        else:
+            base = self.hand.base_pose_for_palm(palm_pos, palm_quat, q)
+        self.set_hand_pose(*base)
+
     def set_hand_joints(self, q: np.ndarray) -> None:
-        self.data.qpos[self.hand_qadr] = q
+        """Hand joints from a full hand joint vector (the scene's own joints of it)."""
+        self.data.qpos[self.hand_qadr] = np.asarray(q)[self.hand_joint_kept]
         self.data.qvel[self.hand_dadr] = 0.0
 
+    def ctrl_for(self, q_target: np.ndarray) -> np.ndarray:
+        """This scene's hand controls (over ``hand_act``) that hold the full joint vector
+        ``q_target``, clipped to the control ranges the scene's actuators have."""
+        m, acts = self.model, self.hand_act
+        ctrl = self.hand.ctrl_for(q_target, clip=False)[self.hand_act_kept]
+        limited = m.actuator_ctrllimited[acts].astype(bool)
+        lo, hi = m.actuator_ctrlrange[acts, 0], m.actuator_ctrlrange[acts, 1]
+        return np.where(limited, np.clip(ctrl, lo, hi), ctrl)
+
     def set_hand_ctrl(self, q_target: np.ndarray) -> None:
-        self.data.ctrl[self.hand_act] = self.hand.ctrl_for(q_target)
+        self.data.ctrl[self.hand_act] = self.ctrl_for(q_target)
 
     def object_pose(self) -> tuple[np.ndarray, np.ndarray]:
         q = self.data.qpos

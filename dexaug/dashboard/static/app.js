@@ -44,13 +44,18 @@ function resultBlock(r) {
     el("span", {}, "generated ", el("b", { class: "n-generated", text: String(r.generated) })),
     el("span", {}, "passed ", el("b", { class: "n-passed", text: String(r.passed) })),
     el("span", {}, "pass rate ", el("b", { class: "pass-rate", text: rate })));
+  // the demo's own grasp under the same protocol: a low pass rate reads differently when the
+  // grasp it was augmented from does not hold either
+  const verdict = r.demo_grasp == null ? "" : r.demo_grasp.passed ? "ok" : "bad";
+  const demoGrasp = el("div", {}, "demonstration grasp: ",
+    el("b", { class: `demo-grasp ${verdict}`, text: r.demo_grasp_text }));
   const failures = Object.entries(r.failures || {}).map(([k, v]) => `${k} ${v}`).join(", ");
   const link = r.report_url
     ? el("a", { class: "report-link", href: r.report_url, target: "_blank", text: "report" })
     : el("span", { text: "no report (gallery 0)" });
   return el("div", {}, el("div", { class: "done-note",
     text: r.skipped ? "Augmented earlier with these options." : "Augmentation finished." }),
-    nums, failures ? el("div", { text: `failures: ${failures}` }) : null, link);
+    nums, demoGrasp, failures ? el("div", { text: `failures: ${failures}` }) : null, link);
 }
 
 function augmentButton(d, label) {

@@ -1,0 +1,118 @@
+"""The ``dgb`` protocol: DexGraspBench's "fc" evaluation of a floating hand, as its code runs it.
+
+Parameter by parameter as ``../shared/reference/dexgraspbench/README.md`` lists them (the scene's
+contacts, servos, mass and solver come from ``[dgb]`` through :class:`sim.world.scene.Scene`):
+
+1. the hand is placed at the **pregrasp**; hand–object or hand–hand penetration deeper than
+   ``max_penetration_m`` fails the grasp before any simulation;
+2. the object's initial world pose is the reference of every measurement;
+3. per world direction −x, +x, −y, +y, −z, +z: reset to the pregrasp (object free, at rest, no
+   force), close pregrasp → grasp and then grasp → squeeze, each in ``stage_increments`` control
+   steps of ``steps_per_increment`` simulation steps (stage-wise linear: merging the two stages
+   changes the verdicts); push with ``force_per_kg``·m newtons at the centre of mass for
+   ``push_time_s``, checking every ``check_every_steps`` steps; the first failing check ends the
+   direction and the first failing direction ends the test;
+4. pass when the object stays within ``max_displacement_m`` and ``max_rotation_rad`` of its
+   initial world pose (strictly below, as the benchmark compares) in all six.
+
+The rotation is the benchmark's: 2·arccos(w) of q_now ⊗ q_initial⁻¹ (w clipped at 1, not
+folded to the shorter arc). Gravity is off throughout. Units: metres, seconds, newtons, radians.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import mujoco
+import numpy as np
+
+from sim.transforms import quat_conj, quat_mul
+from sim.validate.config import DgbParams
+from sim.validate.result import Failure, PhaseResult, ValidationResult
+from sim.validate.stages import GraspStages
+from sim.world.contacts import contacts_between
+from sim.world.scene import OBJECT_HOME, Scene
+
+__all__ = ["DGB_DIRECTIONS", "dgb_drift", "dgb_penetration_m", "run_dgb"]
+
+DGB_DIRECTIONS = {"-x": (-1, 0, 0), "+x": (1, 0, 0), "-y": (0, -1, 0), "+y": (0, 1, 0),
+                  "-z": (0, 0, -1), "+z": (0, 0, 1)}
+_IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
+
+
+def dgb_drift(pos0: np.ndarray, quat0: np.ndarray, pos: np.ndarray,
+              quat: np.ndarray) -> tuple[float, float]:
+    """(metres, radians) from pose 0 to a pose, both in the world, as the benchmark measures."""
+    rel = quat_mul(quat, quat_conj(quat0))
+    w = float(rel[0]) if abs(rel[0]) <= 1.0 else 1.0
+    return float(np.linalg.norm(pos - pos0)), 2.0 * float(np.arccos(w))
+
+
+def _reset(scene: Scene, palm_world: tuple[np.ndarray, np.ndarray], q: np.ndarray) -> None:
+    """Object at home and at rest, hand at the palm pose with joints and controls at ``q``."""
+    m, d = scene.model, scene.data
+    mujoco.mj_resetData(m, d)
+    m.opt.gravity[:] = 0.0
+    scene.set_object_pose(OBJECT_HOME, _IDENTITY)
+    scene.set_palm_pose(*palm_world, q)
+    scene.set_hand_joints(q)
+    scene.set_hand_ctrl(q)
+    mujoco.mj_forward(m, d)
+
+
+def dgb_penetration_m(scene: Scene) -> tuple[float, float]:
+    """(hand–object, hand–hand) penetration depth (metres, ≥ 0) of the current state."""
+    m, d = scene.model, scene.data
+    ho = contacts_between(m, d, scene.hand_geom_mask, scene.obj_geom_mask).max_penetration_m
+    hh = contacts_between(m, d, scene.hand_geom_mask, scene.hand_geom_mask).max_penetration_m
+    return ho, hh
+
+
+def _stage(scene: Scene, p: DgbParams, q_from: np.ndarray, q_to: np.ndarray) -> None:
+    m, d = scene.model, scene.data
+    c_from, c_to = scene.ctrl_for(q_from), scene.ctrl_for(q_to)
+    for k in range(1, p.stage_increments + 1):
+        alpha = k / p.stage_increments
+        d.ctrl[scene.hand_act] = (1.0 - alpha) * c_from + alpha * c_to
+        mujoco.mj_forward(m, d)
+        mujoco.mj_step(m, d, nstep=p.steps_per_increment)
+
+
+def run_dgb(scene: Scene, p: DgbParams, palm_world: tuple[np.ndarray, np.ndarray],
+            stages: GraspStages, result: ValidationResult,
+            after_first_close: Callable[[], None] | None = None) -> None:
+    """Run the benchmark on the grasp whose frame_palm sits at ``palm_world`` (world position,
+    wxyz) with ``stages``; fills ``result`` (penetration, one phase per tested direction, the
+    last measured drift, the verdict). ``after_first_close`` is called once, closed, before the
+    first push (to measure contacts)."""
+    m, d = scene.model, scene.data
+    _reset(scene, palm_world, stages.pregrasp)
+    ho, hh = dgb_penetration_m(scene)
+    result.penetration_m = ho
+    if ho > p.max_penetration_m or hh > p.max_penetration_m:
+        result.failure = Failure.PENETRATION
+        return
+    pos0, quat0 = scene.object_pose()
+    force = p.force_per_kg * scene.obj_mass_kg
+    checks = max(round(p.push_time_s / m.opt.timestep) // p.check_every_steps, 1)
+    ok, disp, rot = True, 0.0, 0.0
+    for i, (name, direction) in enumerate(DGB_DIRECTIONS.items()):
+        _reset(scene, palm_world, stages.pregrasp)
+        _stage(scene, p, stages.pregrasp, stages.grasp)
+        _stage(scene, p, stages.grasp, stages.squeeze)
+        if i == 0 and after_first_close is not None:
+            after_first_close()
+        d.xfrc_applied[scene.obj_body, :3] = force * np.asarray(direction, float)
+        for _ in range(checks):
+            mujoco.mj_step(m, d, nstep=p.check_every_steps)
+            disp, rot = dgb_drift(pos0, quat0, *scene.object_pose())
+            ok = disp < p.max_displacement_m and rot < p.max_rotation_rad
+            if not ok:
+                break
+        result.phases[name] = PhaseResult(ok, disp, rot)
+        if not ok:
+            break
+    d.xfrc_applied[scene.obj_body] = 0.0
+    result.displacement_m, result.rotation_rad = disp, rot
+    result.passed = ok
+    result.failure = None if ok else Failure.SLIPPED

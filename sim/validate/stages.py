@@ -1,0 +1,63 @@
+"""The three joint vectors a closing runs through: pregrasp → grasp → squeeze.
+
+DexGraspBench closes a hand from a pregrasp to the grasp and then to a squeeze target, and every
+grasp generator makes those two extra vectors its own way; the benchmark's verdicts depend on the
+way as much as on the grasp (reference README: 79 / 54 / 27 % with dexaug's targets, 97 / 76 /
+35 % with BODex's). A grasp that carries its pregrasp and squeeze is run with them; otherwise a
+named convention makes them:
+
+- ``dexaug``: the validator's contact-based targets (:mod:`sim.validate.targets`: contacts
+  moved back along their normals, and pressed in with a grip force sized by the weight);
+- ``bodex``: BODex's: the pregrasp as ``dexaug`` makes it (or the grasp's own), squeeze =
+  2·grasp − pregrasp;
+- ``dgb-rule``: DexGraspBench's rule for grasp-only methods: 0.9·grasp and 1.1·grasp.
+
+The convention used is recorded with every result. Units: radians (joint vectors).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from sim.errors import GraspInputError
+from sim.grasp import Grasp
+from sim.validate.config import SQUEEZE_CONVENTIONS
+from sim.validate.targets import GraspTargets
+
+__all__ = ["GraspStages", "grasp_stages"]
+
+
+@dataclass(frozen=True)
+class GraspStages:
+    """Pregrasp, grasp and squeeze joint vectors (full hand vectors, radians) and how they were
+    made: a convention name, or ``"given"`` when the grasp carried both (a ``bodex`` squeeze is
+    always made from the pregrasp, given or not)."""
+
+    pregrasp: np.ndarray
+    grasp: np.ndarray
+    squeeze: np.ndarray
+    made_by: str
+
+
+def grasp_stages(grasp: Grasp, convention: str,
+                 derive: Callable[[], GraspTargets]) -> GraspStages:
+    """The stages of ``grasp`` under ``convention`` (one of ``SQUEEZE_CONVENTIONS``);
+    ``derive()`` gives the validator's contact-based targets and is only called when needed."""
+    if convention not in SQUEEZE_CONVENTIONS:
+        raise GraspInputError(f"squeeze convention: expected one of {SQUEEZE_CONVENTIONS}, "
+                              f"got {convention!r}")
+    q = grasp.joints
+    if convention == "dgb-rule":
+        return GraspStages(0.9 * q, q, 1.1 * q, convention)
+    need_squeeze = convention == "dexaug" and grasp.squeeze is None
+    targets = derive() if grasp.pregrasp is None or need_squeeze else None
+    pregrasp = grasp.pregrasp if grasp.pregrasp is not None else targets.pregrasp
+    if convention == "bodex":
+        return GraspStages(pregrasp, q, 2.0 * q - pregrasp, convention)
+    if targets is None:
+        return GraspStages(pregrasp, q, grasp.squeeze, "given")
+    squeeze = grasp.squeeze if grasp.squeeze is not None else targets.squeeze
+    return GraspStages(pregrasp, q, squeeze, convention)
