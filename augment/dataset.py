@@ -1,7 +1,7 @@
 """Grasp datasets in HDF5 (DESIGN §7).
 
-Layout (one group per object, compatible with the reference implementation's ``palm_pose`` /
-``hand_pose`` / ``gws`` columns, plus dexaug's own):
+Layout (one group per object, with the reference implementation's column names ``palm_pose`` /
+``hand_pose`` / ``gws`` — not its frames or joint set — plus dexaug's own):
 
 ``/<object>/``
     ``palm_pose`` (N,7) float64: frame_palm in the object frame, metres; attribute

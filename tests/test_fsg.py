@@ -25,6 +25,7 @@ from augment.fsg.candidates import palm_box_vertices
 from augment.fsg.params import FsgError, FsgParams, load_fsg_params
 from augment.fsg.result import FsgGrasp
 from augment.fsg.run import generate
+from augment.fsg.table import TablePlane
 from augment.geometry.sampling import poisson_disk_sample
 from augment.object_cloud import ObjectCloudError, normal_variation, object_cloud
 from sim.errors import DexaugError
@@ -287,6 +288,27 @@ def test_table_mode_keeps_the_palm_above_the_table(shadow, can_setup) -> None:  
     for g in res.grasps:
         v_obj = g.grasp.palm_pos + verts @ quat_to_mat(g.grasp.palm_quat_wxyz).T
         assert v_obj[:, 2].min() >= cloud.z_min_m + params.table_clearance_m - 1e-9
+
+
+@needs_menagerie
+@needs_ycb
+def test_a_tilted_table_keeps_palm_and_fingertips_on_its_side(shadow, can_setup) -> None:  # type: ignore[no-untyped-def]
+    """A can lying on its side (a demonstration's table in the object frame: normal +x through
+    the can's lowest x): every palm box corner and contact point stays above that plane, and
+    the horizontal table's answer would not (the test can fail)."""
+    _, ws, cloud = can_setup
+    params = load_fsg_params(shadow.config)
+    side = TablePlane.through(cloud.points[np.argmin(cloud.points[:, 0])], np.array([1.0, 0.0, 0.0]))
+    res = generate(shadow, cloud, ws, n=3, seed=2, table=side, time_budget_s=10)
+    assert res.grasps and res.stats["table"] > 0
+    verts = palm_box_vertices(np.asarray(shadow.config.palm.box_center),
+                              np.asarray(shadow.config.palm.box_half_extents))
+    for g in res.grasps:
+        v_obj = g.grasp.palm_pos + verts @ quat_to_mat(g.grasp.palm_quat_wxyz).T
+        assert side.elevation_m(v_obj).min() >= params.table_clearance_m - 1e-9
+        assert side.elevation_m(np.asarray(g.contact_points)).min() >= -1e-9
+    with pytest.raises(FsgError, match="unit normal"):
+        TablePlane(np.array([0.0, 0.0, 2.0]), 0.0)
 
 
 @needs_menagerie

@@ -21,6 +21,7 @@ from augment.fsg.contacts import collect_contacts
 from augment.fsg.matching import FingerIndex, match_fingers
 from augment.fsg.params import FsgParams
 from augment.fsg.result import FsgGrasp
+from augment.fsg.table import TablePlane
 from sim.grasp import Grasp
 from sim.transforms import mat_to_quat
 
@@ -43,7 +44,8 @@ class SamplerSetup:
         fingers: active fingers at the start, priority order.
         nq: length of the hand's joint vector; finger_qadr: finger → its joints' indices in it.
         palm_center, palm_half: the palm box in ``frame_palm``, metres.
-        table: table mode; finger_iteration: drop fingers on a poor round.
+        table: the table plane in table mode, else None; finger_iteration: drop fingers on a
+            poor round.
         link_penetration: the paper's eq. 3 on the link skeletons (step 6).
         exact_penetration: the caller's exact check that ends step 6, or ``None``.
         params: sampler parameters.
@@ -58,7 +60,7 @@ class SamplerSetup:
     finger_qadr: dict[str, np.ndarray]
     palm_center: np.ndarray
     palm_half: np.ndarray
-    table: bool
+    table: TablePlane | None
     finger_iteration: bool
     link_penetration: bool
     exact_penetration: PenetrationCheck | None
@@ -92,7 +94,7 @@ class Sampler:
         cands = palm_candidates(self.rng, self.points, self.normals, s.part_idx,
                                 self.clouds[first], n_outer, palm_center=s.palm_center,
                                 palm_half=s.palm_half,
-                                table_z_m=s.cloud.z_min_m if s.table else None,
+                                table=s.table,
                                 params=self.params, stats=self.stats)
         if cands is None:
             return
@@ -114,8 +116,8 @@ class Sampler:
             if reason is not None:
                 self.stats[reason] += 1
                 continue
-            if s.table and contact_faces_below_table(faces, r, t, s.cloud.z_min_m,
-                                                     p.table_clearance_m):
+            if s.table is not None and contact_faces_below_table(faces, r, t, s.table,
+                                                                 p.table_clearance_m):
                 self.stats["table"] += 1
                 continue
             if s.link_penetration and link_penetrates(

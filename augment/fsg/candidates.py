@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from augment.fsg.params import FsgParams
+from augment.fsg.table import TablePlane
 from sim.transforms import axis_angle_to_mat, perpendicular_basis, rotation_between
 
 if TYPE_CHECKING:
@@ -64,7 +65,7 @@ def palm_box_vertices(centre: np.ndarray, half: np.ndarray) -> np.ndarray:
 
 def palm_candidates(rng: np.random.Generator, points: np.ndarray, normals: np.ndarray,
                     part_idx: np.ndarray, fc0: FingerCloud, n_outer: int, *,
-                    palm_center: np.ndarray, palm_half: np.ndarray, table_z_m: float | None,
+                    palm_center: np.ndarray, palm_half: np.ndarray, table: TablePlane | None,
                     params: FsgParams, stats: dict[str, int]) -> Candidates | None:
     """Steps 1 and 2 for ``n_outer`` outer iterations (``n_outer × inner`` candidates).
 
@@ -74,8 +75,7 @@ def palm_candidates(rng: np.random.Generator, points: np.ndarray, normals: np.nd
         part_idx: indices of ``cloud_part`` into ``points``.
         fc0: the first finger's workspace cloud (:func:`first_finger`).
         palm_center, palm_half: the palm box in ``frame_palm``.
-        table_z_m: the table height (the object's lowest point, object frame) in table mode,
-            else ``None``.
+        table: the table plane (object frame) in table mode, else ``None``.
         stats: counts updated in place ("candidates", "palm", "table").
 
     Returns:
@@ -111,10 +111,10 @@ def palm_candidates(rng: np.random.Generator, points: np.ndarray, normals: np.nd
     inside = np.all(np.abs(full - palm_center) <= palm_half, axis=2).sum(1)
     ok = inside <= p.max_palm_points
     stats["palm"] += int((~ok).sum())
-    if table_z_m is not None:
+    if table is not None:
         verts = palm_box_vertices(palm_center, palm_half)     # palm frame
         v_obj = np.einsum("cji,cvj->cvi", rot, verts[None] - trans[:, None])
-        low = v_obj[..., 2].min(axis=1) < table_z_m + p.table_clearance_m
+        low = table.elevation_m(v_obj).min(axis=1) < p.table_clearance_m
         stats["table"] += int((ok & low).sum())
         ok &= ~low
     keep = np.flatnonzero(ok)
@@ -126,20 +126,19 @@ def palm_candidates(rng: np.random.Generator, points: np.ndarray, normals: np.nd
 
 
 def contact_faces_below_table(faces: Sequence[tuple[FingerCloud, int]], rot: np.ndarray,
-                              trans: np.ndarray, table_z_m: float, clearance_m: float) -> bool:
+                              trans: np.ndarray, table: TablePlane, clearance_m: float) -> bool:
     """Step 2 once the fingers are matched (paper: contact-face vertices closer than the
     clearance to the table). ``faces``: (finger cloud, workspace index) per used finger;
     ``rot``, ``trans``: one candidate's transform object → palm. The face rim's lowest point is
     the centre's height minus the face radius (or half-diagonal) times the in-plane extent
     along the vertical."""
-    up_palm = rot[:, 2]                  # object +z expressed in the palm frame
-    floor = table_z_m + clearance_m
+    up_palm = rot @ table.up             # the table's normal expressed in the palm frame
     for fc, k in faces:
         centre_obj = rot.T @ (np.asarray(fc.positions[k]) - trans)
         n = np.asarray(fc.normals[k])
         tilt = math.sqrt(max(0.0, 1.0 - float(n @ up_palm) ** 2))
         size = (float(fc.radius[k]) if np.isfinite(fc.radius[k])
                 else float(np.linalg.norm(np.asarray(fc.half_edges[k]).sum(axis=0))))
-        if centre_obj[2] - size * tilt < floor:
+        if float(table.elevation_m(centre_obj)) - size * tilt < clearance_m:
             return True
     return False

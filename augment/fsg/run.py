@@ -27,6 +27,7 @@ from augment.fsg.batch import Sampler, SamplerSetup
 from augment.fsg.checks import Dedup, PenetrationCheck
 from augment.fsg.params import FsgError, FsgParams, load_fsg_params
 from augment.fsg.result import FsgGrasp, FsgResult
+from augment.fsg.table import TablePlane
 from sim.pools import persistent_pool
 
 if TYPE_CHECKING:
@@ -105,7 +106,7 @@ def merge(outs: Sequence[WorkerOutput], nq: int, params: FsgParams
 
 def generate(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: WorkspaceCloud, *,
              n: int = 10, fingers: int | None = None,
-             finger_names: Sequence[str] | None = None, table: bool = False,
+             finger_names: Sequence[str] | None = None, table: bool | TablePlane = False,
              use_affordance: bool = True, finger_iteration: bool = True,
              link_penetration: bool = False,
              exact_penetration: PenetrationCheck | None = None, seed: int = 0,
@@ -123,7 +124,9 @@ def generate(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: WorkspaceClo
         finger_names: use only these fingers (kept in priority order): with a demonstration,
             the fingers that touched in it — the paper's augmented grasps "involve only those
             fingers", and the others' demo-centred clouds rarely reach the object.
-        table: reject palms (and fingertips' faces) below the table plane.
+        table: reject palms (and fingertips' faces) below a table: ``True`` for the paper's
+            (horizontal, through the object's lowest point), or a :class:`TablePlane` (where a
+            demonstration's object really lay).
         use_affordance: ``True`` samples ``cloud_part`` (affordance annotation, else the
             curvature filter; the paper's "+Aff"); ``False`` samples the whole ``cloud_full``
             (the paper's plain "FSG").
@@ -176,7 +179,8 @@ def generate(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: WorkspaceClo
         fingers=tuple(active),
         nq=hand.nq, finger_qadr={f: np.asarray(hand.finger_qadr[f]) for f in active},
         palm_center=np.asarray(palm.box_center, float),
-        palm_half=np.asarray(palm.box_half_extents, float), table=table,
+        palm_half=np.asarray(palm.box_half_extents, float),
+        table=TablePlane.horizontal(cloud.z_min_m) if table is True else (table or None),
         finger_iteration=finger_iteration, link_penetration=link_penetration,
         exact_penetration=exact_penetration,
         params=dataclasses.replace(params, min_fingers=max(params.min_fingers, 2)))

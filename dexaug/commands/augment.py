@@ -52,7 +52,6 @@ def _generate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--fingers", type=int, help="use at most this many fingers (priority order)")
     p.add_argument("--no-aff", action="store_true", help="sample the whole object cloud, not "
                    "its graspable part (the paper's plain FSG)")
-    p.add_argument("--no-finiter", action="store_true", help="no finger iteration")
     p.add_argument("--out", type=Path, default=Path("grasps.h5"), help="HDF5 dataset to write "
                    "(appended when it exists)")
     generation_args(p)
@@ -91,7 +90,8 @@ def generate_cmd(args: argparse.Namespace, console: Console) -> int:
         res = generate_grasps(hand, object_cloud(obj), ws, n=args.n, fingers=args.fingers,
                        finger_names=demo_fingers(demo) if demo else None,
                        table=args.table, use_affordance=not args.no_aff,
-                       finger_iteration=not args.no_finiter,
+                       finger_iteration=(args.finger_iteration if args.finger_iteration is not None
+                                         else demo is None),
                        link_penetration=not args.no_linkpen, seed=args.seed,
                        time_budget_s=args.budget, workers=workers)
         bar.update(task, completed=len(res.grasps))
@@ -276,9 +276,9 @@ def bench_cmd(args: argparse.Namespace, console: Console) -> int:
 
     For 004, 005, 024, 043 and 062 with the Shadow Hand, without and with the committed
     demonstrations (recordings/demos/), for FSG, FSG+Aff, FSG+Aff-FinIter and FSG+Aff+LinkPen:
-    time per result, GWS ε / volume and valid-ε % from simulated contacts, plus lift-drop and
-    six-dir pass rates, penetration and diversity; prints a Markdown table with the paper's
-    figures beside ours.
+    time per result, GWS ε / volume and valid-ε % from simulated contacts, plus lift-drop,
+    DexGraspBench (dgb) and six-dir pass rates, penetration and diversity; prints a Markdown
+    table with the paper's figures beside ours.
     """
     from dexaug.bench_paper import markdown, measure, paper_figures
     from sim.io import write_bytes_atomic

@@ -38,6 +38,10 @@ def generation_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--table", action="store_true", help="object on a table: keep the palm and "
                    "fingertips above it")
     p.add_argument("--no-linkpen", action="store_true", help="skip the link penetration check")
+    p.add_argument("--finger-iteration", action=argparse.BooleanOptionalAction, default=None,
+                   help="drop the least important finger when a round yields too few grasps "
+                   "(the paper's finger iteration); default: on without a demo, off with one "
+                   "(the demo's fingers are kept)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
     p.add_argument("--budget", type=float, default=120.0, metavar="SECONDS",
@@ -53,4 +57,5 @@ def augment_options(args: argparse.Namespace) -> AugmentOptions:
                           link_penetration=not args.no_linkpen, table=args.table,
                           seed=args.seed, workers=args.workers or default_workers(),
                           time_budget_s=args.budget, gallery=args.gallery,
-                          squeeze_convention=args.squeeze_convention)
+                          squeeze_convention=args.squeeze_convention,
+                          finger_iteration=bool(args.finger_iteration))

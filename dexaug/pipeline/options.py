@@ -41,6 +41,9 @@ class AugmentOptions:
     time_budget_s: float = 120.0
     gallery: int = 6
     squeeze_convention: str | None = None
+    #: with a demo, keep its fingers (False) or let FSG drop the least important one on a
+    #: poor round (the paper's finger iteration)
+    finger_iteration: bool = False
 
 
 #: the configuration files an augmentation's results depend on (besides the hand's own)

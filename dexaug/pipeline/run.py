@@ -100,6 +100,7 @@ def augment_demo(demo: Demo, out_root: Path | str, opts: AugmentOptions | None =
     tick("fsg", 0, opts.n)
     res = generate_grasps(hand, cloud, ws, n=opts.n, table=opts.table, finger_names=demo_fingers(demo),
                    link_penetration=opts.link_penetration, seed=opts.seed,
+                   finger_iteration=opts.finger_iteration,
                    time_budget_s=opts.time_budget_s, workers=opts.workers)
     tick("fsg", len(res.grasps), opts.n)
     timings["fsg"] = time.perf_counter() - t0

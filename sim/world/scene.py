@@ -5,6 +5,11 @@ the mocap target (6-DoF pose control) while contacts still see the hand's real v
 that *is* a mocap body has zero velocity in the solver, which makes friction fight the lift).
 Hand bodies are gravity-compensated, as a real arm-mounted hand's controller would do. All
 composition goes through ``mujoco.MjSpec``; no XML strings are pasted together.
+
+``object_hold`` adds an object-to-world weld, inactive until :meth:`Scene.hold_object`: the
+teleop demonstration mode holds the settled object fixed while the operator grasps it (an
+imperfect approach cannot knock it away), and contacts and contact forces work as before. A
+scene built without it has no such constraint at all, so its physics is unchanged.
 """
 
 from __future__ import annotations
@@ -22,6 +27,7 @@ from sim.world.objects import ObjectAsset
 
 HAND_PREFIX = "hand/"
 OBJECT_PREFIX = "obj/"
+_HOLD = "object_hold"  # the optional object-to-world weld's name
 TABLE_TOP_Z = 0.0
 OBJECT_HOME = np.array([0.0, 0.0, 0.3])  # metres: where a floating object starts, in the world
 
@@ -37,6 +43,11 @@ class PhysicsOptions:
     noslip_iterations: int = 0
     solver_iterations: int = 100
     weld_solref: tuple[float, float] = (0.01, 1.0)
+    #: the object hold's weld (``Scene(object_hold=True)``): stiff (the shortest time constant
+    #: MuJoCo accepts at the default 4 ms step is 2 steps) and nearly hard (impedance 0.99+),
+    #: so a hand driven into the held object is stopped by it rather than shoving it
+    hold_solref: tuple[float, float] = (0.008, 1.0)
+    hold_solimp: tuple[float, float, float] = (0.99, 0.999, 0.001)
     #: constraint Jacobians stored sparse: the hand's fingers are separate kinematic branches,
     #: so a contact row touches a few of the ~36 dofs; measured on 60 screwdriver lift-drop
     #: validations: 89–105 ms per grasp against 114 dense, same outcomes. None: MuJoCo's
@@ -70,7 +81,7 @@ class Scene:
                  contact: ContactParams | None = None,
                  physics: PhysicsOptions | None = None, servos: ServoSettings | None = None,
                  floating_palm: bool = False, object_mass_kg: float | None = None,
-                 contact_on_hand: bool = False) -> None:
+                 contact_on_hand: bool = False, object_hold: bool = False) -> None:
         self.hand = hand
         self.obj = obj
         self.table = table
@@ -79,6 +90,7 @@ class Scene:
         self.servos = servos
         self.floating_palm = floating_palm
         self.contact_on_hand = contact_on_hand
+        self.object_hold = object_hold and obj is not None
         self.model = self._compose().compile()
         self.data = mujoco.MjData(self.model)
         self._index()
@@ -138,6 +150,12 @@ class Scene:
         if self.obj is not None:
             frame = world.worldbody.add_frame(pos=OBJECT_HOME)
             world.attach(self.obj.spec(self.contact), prefix=OBJECT_PREFIX, frame=frame)
+        if self.object_hold:  # body1 = world: the relative pose is the object's world pose
+            hold = world.add_equality(name=_HOLD, type=mujoco.mjtEq.mjEQ_WELD,
+                                      objtype=mujoco.mjtObj.mjOBJ_BODY, name1="world",
+                                      name2=OBJECT_PREFIX + "object",
+                                      solref=list(opts.hold_solref), solimp=list(opts.hold_solimp))
+            hold.active = False
         if self.table:
             world.worldbody.add_geom(
                 name="table", type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.5, 0.5, 0.02],
@@ -201,6 +219,7 @@ class Scene:
         else:
             self.obj_geom_mask = np.zeros(m.ngeom, bool)
         self.table_geom = m.geom("table").id if self.table else -1
+        self._hold_eq = m.equality(_HOLD).id if self.object_hold else -1
 
     # ---------------------------------------------------------------------------------- driving
 
@@ -251,6 +270,31 @@ class Scene:
         self.data.qpos[self.obj_qadr:self.obj_qadr + 3] = pos
         self.data.qpos[self.obj_qadr + 3:self.obj_qadr + 7] = quat
         self.data.qvel[self.obj_dadr:self.obj_dadr + 6] = 0.0
+
+    @property
+    def object_held(self) -> bool:
+        """The object is welded where :meth:`hold_object` found it."""
+        return self._hold_eq >= 0 and bool(self.data.eq_active[self._hold_eq])
+
+    def hold_object(self) -> None:
+        """Weld the object to the world at its current pose (qpos; its velocity is zeroed).
+
+        Raises RuntimeError when the scene was built without ``object_hold``."""
+        if self._hold_eq < 0:
+            raise RuntimeError("this scene was built without object_hold: the object cannot be "
+                               "held")
+        pos, quat = self.object_pose()
+        eq = self.model.eq_data[self._hold_eq]
+        eq[:3] = 0.0                              # anchor: the object body's origin
+        eq[3:6], eq[6:10] = pos, quat / np.linalg.norm(quat)
+        eq[10] = 1.0                              # torque scale
+        self.data.qvel[self.obj_dadr:self.obj_dadr + 6] = 0.0
+        self.data.eq_active[self._hold_eq] = 1
+
+    def release_object(self) -> None:
+        """Let the object move freely again (nothing to do when it is not held)."""
+        if self._hold_eq >= 0:
+            self.data.eq_active[self._hold_eq] = 0
 
     def palm_world_pose(self) -> tuple[np.ndarray, np.ndarray]:
         """frame_palm in the world, from the simulated hand state."""

@@ -2,7 +2,8 @@
 
 Why apart from the loop: rerecording, benchmarks and tests build a config (or change one field
 of it with :func:`dataclasses.replace`) before any bridge exists. Units are in the names
-(``_hz``, ``_m``, ``_deg``, ``_s``); ``recordings_dir`` is relative to the repository root.
+(``_hz``, ``_m``, ``_deg``, ``_s``, ``_mps``); ``recordings_dir`` is relative to the repository
+root. ``object_mode`` is one of :data:`OBJECT_MODES` (:mod:`teleop.bridge.object_mode`).
 """
 
 from __future__ import annotations
@@ -15,14 +16,19 @@ import numpy as np
 from sim.config import Section, load_toml
 from teleop.retarget.config import TELEOP_CONFIG
 
-__all__ = ["BridgeConfig", "load_bridge_config"]
+__all__ = ["OBJECT_MODES", "BridgeConfig", "load_bridge_config"]
 
 Array = np.ndarray
+
+#: "demo": the object settles on the table and is held fixed while the operator grasps (the
+#: paper's demonstration mode); "free": it stays a free body (lift it for real)
+OBJECT_MODES: tuple[str, ...] = ("demo", "free")
 
 _BRIDGE_KEYS = {"state_rate_hz", "view_enabled", "view_rate_hz", "view_max_duty", "view_width",
                 "view_height",
                 "jpeg_quality", "world_offset_m", "object", "object_pos_m", "object_yaw_deg",
-                "table", "timestep_s", "max_catchup_steps", "steps_per_frame", "recordings_dir",
+                "table", "object_mode", "settle_speed_mps", "settle_still_s",
+                "settle_timeout_s", "timestep_s", "max_catchup_steps", "steps_per_frame", "recordings_dir",
                 "deterministic"}
 
 
@@ -43,6 +49,10 @@ class BridgeConfig:
     object_pos_m: Array = field(default_factory=lambda: np.array([0.35, 0.0]))
     object_yaw_deg: float = 0.0
     table: bool = True
+    object_mode: str = "demo"
+    settle_speed_mps: float = 0.005
+    settle_still_s: float = 0.1
+    settle_timeout_s: float = 2.0
     timestep_s: float = 0.004
     max_catchup_steps: int = 25
     steps_per_frame: int = 3
@@ -75,9 +85,20 @@ def load_bridge_config(path: Path | str | None = None) -> BridgeConfig:
         object_pos_m=np.array(sec.floats("object_pos_m", 2, list(d.object_pos_m))),
         object_yaw_deg=sec.float("object_yaw_deg", d.object_yaw_deg),
         table=sec.bool("table", d.table),
+        object_mode=_object_mode(sec),
+        settle_speed_mps=sec.float("settle_speed_mps", d.settle_speed_mps, min=1e-6),
+        settle_still_s=sec.float("settle_still_s", d.settle_still_s, min=0.0),
+        settle_timeout_s=sec.float("settle_timeout_s", d.settle_timeout_s, min=0.0),
         timestep_s=sec.float("timestep_s", d.timestep_s, min=1e-4, max=0.05),
         max_catchup_steps=sec.int("max_catchup_steps", d.max_catchup_steps, min=1),
         steps_per_frame=sec.int("steps_per_frame", d.steps_per_frame, min=0),
         recordings_dir=rec_dir,
         deterministic=sec.bool("deterministic", d.deterministic),
     )
+
+
+def _object_mode(sec: Section) -> str:
+    mode = sec.str("object_mode", BridgeConfig.object_mode)
+    if mode not in OBJECT_MODES:
+        raise sec.error("object_mode", f"expected one of {', '.join(OBJECT_MODES)}, got {mode!r}")
+    return mode
