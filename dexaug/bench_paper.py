@@ -1,9 +1,10 @@
 """``dexaug bench paper``: the rows of the paper's Tables 2 and 3, measured here, beside the paper's.
 
 Per object, workspace ("manual": the hand's joint ranges, Table 2; "demo": centred on the
-committed demonstration ``recordings/demos/<object>.json``, Table 3) and FSG variant (paper
-§5.1: FSG samples the whole object cloud, +Aff its graspable part, −FinIter without finger
-iteration, +LinkPen with the link penetration check):
+committed demonstration, Table 3: the imported human one ``recordings/demos/human/<object>.json``
+where it exists, else the scripted ``recordings/demos/<object>.json``, :func:`demo_file`) and FSG
+variant (paper §5.1: FSG samples the whole object cloud, +Aff its graspable part, −FinIter
+without finger iteration, +LinkPen with the link penetration check):
 
 * time per result: wall seconds of the whole ``generate`` call (object cloud cached, workspace
   built beforehand) divided by the grasps returned, on this machine's cores;
@@ -81,6 +82,16 @@ def paper_figures(path: Path = PAPER_TABLES) -> dict[tuple[str, str, str], list[
     return out
 
 
+def demo_file(name: str) -> Path | None:
+    """The demonstration Table 3 seeds AutoWS with for object ``name``: a real (imported human)
+    one where it exists, as the paper's are, else the scripted one; None when there is neither."""
+    from dexaug.pipeline.demo_import import IMPORTED_DEMOS_DIR
+
+    found = [p for p in (IMPORTED_DEMOS_DIR / f"{name}.json", DEMOS_DIR / f"{name}.json")
+             if p.is_file()]
+    return found[0] if found else None
+
+
 def _diversity(grasps: list[FsgGrasp], joint_mask: np.ndarray) -> tuple[float, float]:
     pos = np.array([g.grasp.palm_pos for g in grasps])
     spread = float(np.sqrt(((pos - pos.mean(axis=0)) ** 2).sum(axis=1).mean()))
@@ -113,8 +124,8 @@ def measure(objects: list[str], methods: list[str], workspaces: list[str], *, n:
         for mode in workspaces:
             demo = None
             if mode == "demo":
-                path = DEMOS_DIR / f"{name}.json"
-                if not path.is_file():
+                path = demo_file(name)
+                if path is None:
                     continue
                 demo = load_demo(path)
             ws = build_workspace(hand, demo=DemoSeed.from_demo(demo)) if demo else manual

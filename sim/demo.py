@@ -43,6 +43,9 @@ class Demo:
         contact_points_obj: finger → (k,3) the contact points in the object frame, metres.
         source: the session file; time_s: seconds from the session start; how: "grasp_mark"
             or "stable contact"; duration_s: length of the stable run (0 for a lone mark).
+        table: the support the object rested on during the demonstration, when known: the
+            plane in the object frame, ``{"point_m": (3,) a point on it, metres, "normal": (3,)
+            its upward unit normal}``; None (the default, and older demo files) when unknown.
     """
 
     id: str
@@ -58,6 +61,7 @@ class Demo:
     how: str
     duration_s: float = 0.0
     fingers: tuple[str, ...] = field(default=())
+    table: dict[str, np.ndarray] | None = None
 
     @property
     def grasp(self) -> Grasp:
@@ -72,7 +76,8 @@ def demo_to_json(demo: Demo) -> dict[str, Any]:
            "tip_contacts_m": {k: v.tolist() for k, v in demo.tip_contacts.items()},
            "contact_points_obj_m": {k: v.tolist() for k, v in demo.contact_points_obj.items()},
            "source": str(demo.source), "time_s": demo.time_s, "how": demo.how,
-           "duration_s": demo.duration_s, "fingers": list(demo.fingers)}
+           "duration_s": demo.duration_s, "fingers": list(demo.fingers),
+           "table": None if demo.table is None else {k: v.tolist() for k, v in demo.table.items()}}
 
 
 def save_demo(path: Path | str, demo: Demo) -> None:
@@ -90,11 +95,27 @@ def load_demo(path: Path | str) -> Demo:
     if not isinstance(doc, dict) or doc.get("format") != DEMO_FORMAT:
         raise DemoError(f"{path}: field 'format' must be {DEMO_FORMAT!r}")
 
-    def arr(key: str, n: int | None) -> np.ndarray:
-        a = np.asarray(doc.get(key, []), float)
+    def arr(key: str, n: int | None, where: dict[str, Any] = doc, prefix: str = "") -> np.ndarray:
+        try:
+            a = np.asarray(where.get(key, []), float)
+        except (TypeError, ValueError):   # strings, ragged lists: reported below
+            a = np.empty((0, 0))
         if a.ndim != 1 or (n is not None and len(a) != n) or not np.isfinite(a).all():
-            raise DemoError(f"{path}: field {key!r} must be {n or 'a list of'} finite numbers")
+            raise DemoError(f"{path}: field {prefix + key!r} must be {n or 'a list of'} finite "
+                            f"numbers")
         return a
+
+    def table() -> dict[str, np.ndarray] | None:
+        plane = doc.get("table")
+        if plane is None:
+            return None
+        if not isinstance(plane, dict) or set(plane) != {"point_m", "normal"}:
+            raise DemoError(f"{path}: field 'table' must be null or {{\"point_m\": [x, y, z], "
+                            f"\"normal\": [x, y, z]}} (the support plane in the object frame)")
+        normal = arr("normal", 3, plane, "table.")
+        if np.linalg.norm(normal) < 1e-9:
+            raise DemoError(f"{path}: field 'table.normal' must be a non-zero 3-vector")
+        return {"point_m": arr("point_m", 3, plane, "table."), "normal": normal / np.linalg.norm(normal)}
 
     try:
         return Demo(id=str(doc["id"]), hand=str(doc["hand"]), object=str(doc["object"]),
@@ -106,6 +127,6 @@ def load_demo(path: Path | str) -> Demo:
                                         for k, v in doc.get("contact_points_obj_m", {}).items()},
                     source=Path(doc.get("source", path)), time_s=float(doc.get("time_s", 0.0)),
                     how=str(doc.get("how", "file")), duration_s=float(doc.get("duration_s", 0)),
-                    fingers=tuple(doc.get("fingers", ())))
+                    fingers=tuple(doc.get("fingers", ())), table=table())
     except KeyError as exc:
         raise DemoError(f"{path}: missing field {exc}") from None

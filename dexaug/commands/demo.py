@@ -1,18 +1,36 @@
-"""Subcommand ``demo``: the main job on its embedded default (what ``make demo`` runs).
+"""Subcommand ``demo``: the main job on its embedded default (what ``make demo`` runs), and the
+actions on demos (``dexaug demo ACTION``).
 
-The teleop path (a synthetic session replayed through the bridge) and the augmentation of the
-committed demonstration, or of a scripted procedural one when the YCB objects are missing.
+The main job: the teleop path (a synthetic session replayed through the bridge) and the
+augmentation of the committed demonstration, or of a scripted procedural one when the YCB
+objects are missing. Actions register with :func:`action` (argument setup + handler, as
+subcommands do with ``registry.command``), so adding one is one decorated function.
 """
 
 from __future__ import annotations
 
 import argparse
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from rich.console import Console
 
-from dexaug.commands.registry import command
+from dexaug.commands.registry import Handler, Setup, command
+
+#: ``dexaug demo ACTION``: action name → (argument setup, handler), in registration order
+ACTIONS: dict[str, tuple[Setup, Handler]] = {}
+
+
+def action(name: str, setup: Setup) -> Callable[[Handler], Handler]:
+    """Register an action of ``dexaug demo``: ``setup`` adds its arguments, the decorated
+    function runs it (``dexaug demo`` without an action runs the main job)."""
+
+    def register(fn: Handler) -> Handler:
+        ACTIONS[name] = (setup, fn)
+        return fn
+
+    return register
 
 
 def _demo_args(p: argparse.ArgumentParser) -> None:
@@ -22,8 +40,16 @@ def _demo_args(p: argparse.ArgumentParser) -> None:
                    default=REPO_ROOT / "recordings" / "demo_005_tomato_soup_can.mcap",
                    help="the demonstration session to augment (default: the committed Shadow "
                    "Hand grasp of the tomato soup can)")
-    p.add_argument("--out", type=Path, default=Path("datasets/demo"), help="output folder")
-    p.add_argument("--n", type=int, default=100, help="grasps to generate")
+    p.add_argument("--out", type=Path, default=Path("datasets/demo"),
+                   help="output folder; default %(default)s")
+    p.add_argument("--n", type=int, default=100, help="grasps to generate; default %(default)s")
+    actions = p.add_subparsers(dest="action", metavar="ACTION", title="actions (none: the main job)")
+    for name, (setup, fn) in ACTIONS.items():
+        doc = (fn.__doc__ or "").strip()
+        sub = actions.add_parser(name, help=doc.splitlines()[0] if doc else None, description=doc,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+        setup(sub)
+        sub.set_defaults(handler=fn)
 
 
 @command("demo", _demo_args)
@@ -37,6 +63,8 @@ def demo(args: argparse.Namespace, console: Console) -> int:
        lift-drop validation of every grasp → HDF5 dataset and HTML report, whose paths are
        printed. Without the YCB objects, a scripted demonstration on a procedural cylinder is
        recorded first and augmented instead.
+
+    Actions on demos: `dexaug demo ACTION --help` (import: a static grasp pose file → demo).
     """
     import tempfile
 
@@ -96,3 +124,55 @@ def _procedural_demo_session(out: Path) -> Path:
     if not passing:
         raise DexaugError("no FSG grasp of the procedural cylinder passed lift-drop")
     return record_scripted_demo(hand, "cylinder", passing[0], out, overwrite=True)
+
+
+def _import_args(p: argparse.ArgumentParser) -> None:
+    from dexaug.pipeline.demo_import import DEFAULT_TOLERANCE_M, IMPORTED_DEMOS_DIR
+    from sim.paths import REPO_ROOT
+
+    p.add_argument("file", type=Path, metavar="FILE", help="keyframe file: dexaug keyframe JSON "
+                   "(.json) or the FSG authors' srh.txt format (any other suffix)")
+    p.add_argument("--out", type=Path, default=IMPORTED_DEMOS_DIR,
+                   help="a DEMO.json file (one demo) or a folder (<object>.json per demo); "
+                   f"default {IMPORTED_DEMOS_DIR.relative_to(REPO_ROOT)}/, which `dexaug bench "
+                   "paper` prefers to the scripted demos")
+    p.add_argument("--object", default=None, metavar="NAME",
+                   help="import only this object's keyframe; default: every keyframe in FILE")
+    p.add_argument("--object-transform", type=float, nargs=7, default=None,
+                   metavar=("X", "Y", "Z", "QW", "QX", "QY", "QZ"),
+                   help="pose of our object's frame in the file's object frame (metres, "
+                   "quaternion w x y z); required for srh.txt, whose objects are the authors' "
+                   "re-centred meshes (one object at a time: with --object); default: identity")
+    p.add_argument("--hand", default=None, help="hand config (configs/hands/<hand>/); default: "
+                   "the one whose palm body and finger joints the file names (srh.txt, which "
+                   "names none: configs/hands/default.toml's)")
+    p.add_argument("--tolerance-mm", type=float, default=DEFAULT_TOLERANCE_M * 1e3,
+                   help="a fingertip whose signed distance to the object is at most this "
+                   "touches it; default %(default)g mm")
+    p.add_argument("--note", default="", help="free text kept in the demo's provenance (e.g. "
+                   "the source's authors and licence); default none")
+    p.add_argument("--force", action="store_true", help="replace existing demo files")
+
+
+@action("import", _import_args)
+def demo_import(args: argparse.Namespace, console: Console) -> int:
+    """Turn a static grasp pose (object pose, palm body pose, joints) into a demo.
+
+    The hand and object are placed in MuJoCo as the validator places a grasp; every fingertip's
+    signed distance to the object is measured (negative = penetration) and printed, and the
+    fingers within --tolerance-mm are the demo's fingers, with their contact points. A pose with
+    no fingertip within the tolerance, an object that is not installed or a malformed file is
+    refused with one line, and nothing is written. The demo JSON also records its provenance
+    (file, entry, transform, tolerance, per-finger distances, --note) and the table top, when
+    the file gives one, as a plane in the object frame.
+    """
+    from dexaug.pipeline.demo_import import describe, import_demos, write_imported
+
+    imported = import_demos(args.file, hand=args.hand, object_name=args.object,
+                            object_transform=args.object_transform,
+                            tolerance_m=args.tolerance_mm * 1e-3, note=args.note)
+    for item in imported:
+        console.print(describe(item), highlight=False)
+    for path in write_imported(imported, args.out, force=args.force):
+        console.print(f"wrote {path}", highlight=False)
+    return 0

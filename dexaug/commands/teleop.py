@@ -1,4 +1,5 @@
-"""Subcommands of the teleoperation half: ``retarget``, ``synth``, ``bridge``, ``replay``.
+"""Subcommands of the teleoperation half: ``retarget``, ``synth``, ``import-trajectory``,
+``bridge``, ``replay``.
 
 Each parses its arguments, calls ``teleop``, and reports; the bridge can hand every finished
 recording to ``dexaug augment`` in a background process.
@@ -103,6 +104,66 @@ def synth(args: argparse.Namespace, console: Console) -> int:
     return 0
 
 
+def _import_trajectory_args(p: argparse.ArgumentParser) -> None:
+    from teleop.input.keypoints import FORMATS, SPACES, Anchor
+
+    default = Anchor()
+    p.add_argument("file", type=Path, help="keypoint trajectory, metres: .pkl (a list of (J,3) "
+                   "arrays), .npy ((T,J,3)) or .npz (keypoints (T,J,3); optional object_pos_m "
+                   "(T,3) and object_quat_wxyz (T,4) in the same space)")
+    p.add_argument("--format", choices=FORMATS, default="mediapipe", help="mediapipe: 21 "
+                   "MediaPipe/MANO keypoints (wrist, thumb CMC..tip, index..little MCP..tip); "
+                   "openxr: 26 OpenXR joints (PALM first) or 25 WebXR joints; default %(default)s")
+    p.add_argument("--side", choices=("left", "right"), required=True,
+                   help="which hand the trajectory is (never guessed: MediaPipe's handedness "
+                   "label is mirrored on selfie images); must match --hand's operator side")
+    p.add_argument("--fps", type=float, default=30.0, help="frames per second of the trajectory "
+                   "(timestamps are frame / fps); default %(default)s")
+    p.add_argument("--space", choices=SPACES, help="hand: only the hand's shape counts (MediaPipe "
+                   "world landmarks, global motion removed), placed at --wrist-pos/--wrist-rpy-deg; "
+                   "xr: an OpenXR reference space (+Y up, -Z forward); world: the operator's "
+                   "tracking space in MuJoCo axes (+Z up); default hand for mediapipe, xr for openxr")
+    hand_arg(p, "robot hand the session is for")
+    p.add_argument("--object", help="object on the table (YCB id or primitive): required with "
+                   "object poses in the file, and `dexaug rerecord` needs one (here or there)")
+    p.add_argument("--wrist-pos", type=float, nargs=3, metavar=("X", "Y", "Z"),
+                   default=default.wrist_pos_m.tolist(), help="--space hand: the mean wrist "
+                   "position in the tracking space, metres (the table top is at z 0.8); default "
+                   "%(default)s")
+    p.add_argument("--wrist-rpy-deg", type=float, nargs=3, metavar=("R", "P", "Y"),
+                   default=[0.0, 0.0, 0.0], help="--space hand: the mean wrist orientation "
+                   "(fixed-axis roll, pitch, yaw; 0 0 0 = fingers along +x, back of the hand up); "
+                   "default %(default)s")
+    p.add_argument("--out", type=Path, required=True, help="raw-input MCAP session to write")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing file")
+
+
+@command("import-trajectory", _import_trajectory_args)
+def import_trajectory(args: argparse.Namespace, console: Console) -> int:
+    """Import an offline hand trajectory (MediaPipe/MANO keypoints or OpenXR joints) as a session.
+
+    Completes each frame into the 26 OpenXR joints (orientations from the bones and the palm
+    plane, template radii, metacarpals for 21-keypoint input), checks units (metres), joint
+    order and side, and writes a raw-input session (/hands, and the object's poses on /tf)
+    that `dexaug rerecord` drives through the bridge and `dexaug replay` publishes. Nothing is
+    written when the input is refused.
+    """
+    from teleop.input.keypoints import Anchor
+    from teleop.input.trajectory import import_trajectory as run_import
+
+    space = args.space or ("hand" if args.format == "mediapipe" else "xr")
+    result = run_import(args.file, args.out, fmt=args.format, side=args.side, fps=args.fps,
+                        hand=args.hand, space=space, object_name=args.object,
+                        anchor=Anchor.from_rpy(args.wrist_pos, args.wrist_rpy_deg),
+                        overwrite=args.overwrite)
+    placed = (f", object {args.object} at {np.round(result.metadata['object_pos_m'], 3).tolist()}"
+              if "object_pos_m" in result.metadata else "")
+    console.print(f"wrote {result.path}: {result.frames} frames over {result.duration_s:.1f} s "
+                  f"({result.tracked} with a tracked {args.side} hand, space {space}){placed}",
+                  soft_wrap=True)
+    return 0
+
+
 def _bridge_args(p: argparse.ArgumentParser) -> None:
     hand_arg(p)
     p.add_argument("--object", help="object on the table (default: configs/teleop.toml [bridge])")
@@ -112,6 +173,10 @@ def _bridge_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--duration", type=float, help="stop after this many seconds")
     p.add_argument("--record", type=Path, help="start recording to this MCAP file at once")
     p.add_argument("--no-view", action="store_true", help="do not render the /view stream")
+    p.add_argument("--object-mode", choices=("demo", "free"),
+                   help="demo: the object settles on the table and is held while you grasp (the "
+                   "paper's demonstration mode); free: lift it for real (default: "
+                   "configs/teleop.toml [bridge] object_mode, demo)")
     p.add_argument("--web", action="store_true",
                    help="also serve the headset page (WebXR) and its WebSocket ingest")
     p.add_argument("--web-port", type=int, default=8443, help="port of the headset page")
@@ -133,7 +198,7 @@ def bridge(args: argparse.Namespace, console: Console) -> int:
     Subscribes dexaug/<rig>/hands (live ingest or `dexaug replay`), drives a floating hand and an
     object on a table, publishes dexaug/<rig>/state and a JPEG head-camera stream on
     dexaug/<rig>/view, and answers dexaug/<rig>/control/** (start_recording, stop_recording,
-    choose_object, reset_object, mark_grasp, status). Ctrl-C stops it.
+    choose_object, reset_object, set_object_mode, mark_grasp, status). Ctrl-C stops it.
     """
     from teleop.bridge.main import bridge_main
 
@@ -158,7 +223,8 @@ def bridge(args: argparse.Namespace, console: Console) -> int:
         return bridge_main(args.hand, args.object, args.rig, listen_port=args.listen,
                            connect_ports=tuple(args.connect) + extra_ports,
                            duration_s=args.duration, record=args.record,
-                           view=False if args.no_view else None, on_recording_closed=hook)
+                           view=False if args.no_view else None, object_mode=args.object_mode,
+                           on_recording_closed=hook)
     finally:
         if ingest is not None:
             ingest.close()
@@ -188,6 +254,9 @@ def _replay_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--rig", default="local", help="zenoh key prefix dexaug/<rig>/…")
     p.add_argument("--connect", type=int, nargs="+", default=[7447],
                    help="bridge port(s) to connect to on 127.0.0.1")
+    p.add_argument("--object-mode", choices=("demo", "free"),
+                   help="set the bridge's object mode first (default: the session's; free for "
+                   "an older session that records none)")
 
 
 @command("replay", _replay_args)
@@ -195,11 +264,14 @@ def replay(args: argparse.Namespace, console: Console) -> int:
     """Publish a recorded session's hand tracking back onto zenoh (dexaug/<rig>/hands).
 
     With original timing (--rate 1.0), scaled, or as fast as possible (--rate max); the bridge
-    cannot tell a replay from a live headset.
+    cannot tell a replay from a live headset. The bridge is first put in the session's object
+    mode (or --object-mode's).
     """
     from sim.errors import ConfigError
+    from teleop.bridge.session_mode import session_object_mode, tell_bridge
     from teleop.keys import free_tcp_port, open_session
     from teleop.record.replay import replay as replay_session
+    from teleop.record.session import open_session as open_recording
 
     rate: float | str = args.rate
     if args.rate != "max":
@@ -207,8 +279,11 @@ def replay(args: argparse.Namespace, console: Console) -> int:
             rate = float(args.rate)
         except ValueError:
             raise ConfigError(f"--rate: expected a number or 'max', got {args.rate!r}") from None
+    mode = session_object_mode(open_recording(args.file).metadata, args.file, args.object_mode)
     session = open_session(free_tcp_port(), tuple(args.connect))
     try:
+        if tell_bridge(session, args.rig, mode) is not None:
+            console.print(f"bridge object mode: {mode}")
         sent = replay_session(args.file, session, args.rig, rate=rate)
     finally:
         session.close()

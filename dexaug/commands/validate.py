@@ -97,7 +97,7 @@ def run_reference_validation(hand_name: str, console: Console, *, object_name: s
 
 @command("validate", _validate_args)
 def validate(args: argparse.Namespace, console: Console) -> int:
-    """Validate grasps in MuJoCo with the lift-drop and/or six-dir protocol (DESIGN §5).
+    """Validate grasps in MuJoCo: lift-drop, six-dir and/or dgb (DexGraspBench), DESIGN §5.
 
     Without --grasps, validates the hand's hand-built reference grasps
     (configs/hands/<hand>/grasps.toml). Prints per grasp: pass/fail and why, contact count,

@@ -27,6 +27,9 @@ class SynthConfig:
     length of a burst, uniform). Hand: hand_length_m (wrist → middle tip, straight hand).
     tip_surface_snap_m: reference pulp sites closer than this to the object surface are put
     on it before the operator's fingers are fitted (0: imitate the reference exactly).
+    press_depth_m: how far past the surface the operator closes the fingertips (mapped onto
+    the robot): without touch feedback a person closes until the object stops the fingers,
+    and a robot fingertip aimed at the surface stops short of it by the retargeting error.
     Episode: approach_distance_m (start of the wrist, back along the palm normal and up),
     lift_height_m, and the phase durations in seconds. Scene: object_pos_m / object_rpy_deg
     (object frame in the world when the caller gives none), head_pos_m, head_pitch_deg
@@ -43,6 +46,7 @@ class SynthConfig:
     dropout_burst_frames: tuple[int, int] = (2, 10)
     hand_length_m: float = 0.185
     tip_surface_snap_m: float = 0.02
+    press_depth_m: float = 0.01
     approach_distance_m: float = 0.25
     lift_height_m: float = 0.10
     still_s: float = 0.4
@@ -63,6 +67,7 @@ _SYNTH_FLOATS = {"rate_hz": (1.0, 1000.0), "time_jitter_s": (0.0, 0.1), "latency
                  "latency_jitter_s": (0.0, 1.0), "position_noise_m": (0.0, 0.1),
                  "orientation_noise_deg": (0.0, 45.0), "dropout_fraction": (0.0, 0.9),
                  "hand_length_m": (0.10, 0.30), "tip_surface_snap_m": (0.0, 0.1),
+                 "press_depth_m": (0.0, 0.05),
                  "approach_distance_m": (0.0, 2.0),
                  "lift_height_m": (0.0, 1.0), "still_s": (0.0, 60.0),
                  "approach_s": (0.05, 60.0), "close_s": (0.05, 60.0), "settle_s": (0.0, 60.0),

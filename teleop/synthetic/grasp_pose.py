@@ -61,11 +61,12 @@ class GraspTarget:
 
 def grasp_target(robot: Hand, human: HumanHand, corr: Correspondence, scale: float,
                  object_name: str, obj_pos: Array, obj_rot: Array, *, grasp_name: str | None,
-                 snap_m: float) -> GraspTarget:
+                 snap_m: float, press_m: float = 0.0) -> GraspTarget:
     """The operator's grasp of ``object_name`` (world pose ``obj_pos``, ``obj_rot``) for robot
     hand ``robot``: imitating its reference grasp for the object (or ``grasp_name``), else a
     generic side grasp (module docstring). ``scale``: the retargeter's fingertip scale for this
-    operator; ``snap_m``: reference pulp sites this close to the surface go onto it."""
+    operator; ``snap_m``: reference pulp sites this close to the surface go onto it;
+    ``press_m``: the operator closes the fingertips this far past the surface (metres)."""
     ref = _reference_for(robot, object_name, grasp_name)
     residual: dict[str, float] = {}
     if ref is not None:
@@ -75,7 +76,7 @@ def grasp_target(robot: Hand, human: HumanHand, corr: Correspondence, scale: flo
         tips_palm = robot.fingertip_sites(ref.grasp.joints, frame="palm")[0]
         if snap_m > 0.0:
             tips_palm = _snap_tips(tips_palm, object_name, ref.grasp.palm_pos,
-                                   quat_to_mat(ref.grasp.palm_quat_wxyz), snap_m)
+                                   quat_to_mat(ref.grasp.palm_quat_wxyz), snap_m, press_m)
         grasp_pose = HandPose.relaxed()
         for k, robot_finger in enumerate(robot.finger_names):
             joint = corr.mapping.fingers.get(robot_finger)
@@ -92,7 +93,7 @@ def grasp_target(robot: Hand, human: HumanHand, corr: Correspondence, scale: flo
                     {k: round(v, 4) for k, v in residual.items()})
     else:
         wrist_pos, wrist_rot, grasp_pose, residual = _generic_grasp(
-            human, corr, scale, object_name, obj_pos, obj_rot)
+            human, corr, scale, object_name, obj_pos, obj_rot, press_m)
         palm_pos, palm_rot = corr.palm_for_wrist(wrist_pos, wrist_rot)
     return GraspTarget(wrist_pos_m=wrist_pos, wrist_rot=wrist_rot, pose=grasp_pose,
                        palm_pos_m=palm_pos, palm_rot=palm_rot, residual_m=residual,
@@ -117,11 +118,12 @@ def _reference_for(hand: Hand, object_name: str, grasp_name: str | None) -> Any:
 
 
 def _snap_tips(tips_palm: Array, object_name: str, palm_pos_obj: Array, palm_rot_obj: Array,
-               max_gap_m: float) -> Array:
+               max_gap_m: float, press_m: float) -> Array:
     """Reference pulp sites (frame_palm) within ``max_gap_m`` of the object's surface moved
-    onto it (closest point). Why: hand-built reference grasps touch the object with whatever
-    part of the finger met it first, so their pulp sites sit up to ~1.5 cm off the surface;
-    an operator grasping the object puts the finger *pads* on it. Fingers farther away (the
+    onto it (closest point) and ``press_m`` past it, toward the object's inside. Why: hand-built
+    reference grasps touch the object with whatever part of the finger met it first, so their
+    pulp sites sit up to ~1.5 cm off the surface; an operator grasping the object puts the
+    finger *pads* on it and closes until the object stops them. Fingers farther away (the
     reference's unused fingers) keep their place."""
     from sim.world.objects import load_object
 
@@ -129,7 +131,10 @@ def _snap_tips(tips_palm: Array, object_name: str, palm_pos_obj: Array, palm_rot
     tips_obj = palm_pos_obj + tips_palm @ palm_rot_obj.T
     closest, signed = closest_surface_points(mesh, tips_obj)
     snap = np.abs(signed) <= max_gap_m
-    tips_obj = np.where(snap[:, None], closest, tips_obj)
+    inward = closest - tips_obj                       # toward the surface from outside
+    norm = np.linalg.norm(inward, axis=1, keepdims=True)
+    inward = np.where(norm > 1e-9, inward / np.maximum(norm, 1e-12) * np.sign(signed)[:, None], 0.0)
+    tips_obj = np.where(snap[:, None], closest + press_m * inward, tips_obj)
     logger.info("reference pulp sites off the surface (m): %s; snapped: %s",
                 np.round(signed, 4).tolist(), snap.tolist())
     return (tips_obj - palm_pos_obj) @ palm_rot_obj
@@ -148,9 +153,11 @@ def _fill_unmapped(pose: HandPose, mapped_joints: Iterable[str]) -> None:
 
 
 def _generic_grasp(human: HumanHand, corr: Correspondence, scale: float, object_name: str,
-                   obj_pos: Array, obj_rot: Array) -> tuple[Array, Array, HandPose, dict[str, float]]:
+                   obj_pos: Array, obj_rot: Array,
+                   press_m: float) -> tuple[Array, Array, HandPose, dict[str, float]]:
     """Side grasp without a reference: palm facing the object's centre from −x (world),
-    fingers up; the closure level whose mapped fingertips lie closest to the surface."""
+    fingers up; the closure level whose mapped fingertips lie, on average, ``press_m`` past
+    the surface (0: closest to it)."""
     from sim.world.objects import load_object
 
     mesh = load_object(object_name).surface_mesh()
@@ -169,7 +176,7 @@ def _generic_grasp(human: HumanHand, corr: Correspondence, scale: float, object_
         tips_op = pos[[JOINT_INDEX[f"{f}_tip"] for f in FINGERS]]
         tips_palm = corr.p_pw + scale * tips_op @ corr.r_pw.T
         tips_o = (palm_pos + tips_palm @ palm_rot.T - obj_pos) @ obj_rot
-        cost = float(np.mean(np.abs(surface_distance_m(mesh, tips_o))))
+        cost = float(np.mean(np.abs(surface_distance_m(mesh, tips_o) + press_m)))
         if best is None or cost < best[0]:
             best = (cost, pose)
     assert best is not None

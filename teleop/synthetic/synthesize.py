@@ -62,7 +62,8 @@ def synthesize(object_name: str, *, hand: Hand | str, seed: int = 0,
                            np.linalg.norm(object_quat_wxyz)) if object_quat_wxyz is not None
                else rpy_deg_to_mat(cfg.object_rpy_deg))
     target = grasp_target(robot, human, corr, scale, object_name, obj_pos, obj_rot,
-                          grasp_name=grasp_name, snap_m=cfg.tip_surface_snap_m)
+                          grasp_name=grasp_name, snap_m=cfg.tip_surface_snap_m,
+                          press_m=cfg.press_depth_m)
 
     motion = GraspMotion.plan(cfg, target.wrist_pos_m, target.wrist_rot, target.palm_rot,
                               target.pose)
