@@ -72,7 +72,7 @@ def generate_cmd(args: argparse.Namespace, console: Console) -> int:
     from augment.autows.seed import DemoSeed
     from augment.object_cloud import object_cloud
     from dexaug.pipeline.demos import resolve_demo
-    from dexaug.pipeline.run import demo_fingers, generate_grasps
+    from dexaug.pipeline.run import demo_fingers, demo_table, generate_grasps
     from sim.hand.model import Hand
     from sim.validate.batch import default_workers, validate_many
     from sim.world.objects import load_object
@@ -89,7 +89,7 @@ def generate_cmd(args: argparse.Namespace, console: Console) -> int:
         task = bar.add_task(f"FSG {obj.name}", total=args.n)
         res = generate_grasps(hand, object_cloud(obj), ws, n=args.n, fingers=args.fingers,
                        finger_names=demo_fingers(demo) if demo else None,
-                       table=args.table, use_affordance=not args.no_aff,
+                       table=demo_table(demo, args.table), use_affordance=not args.no_aff,
                        finger_iteration=(args.finger_iteration if args.finger_iteration is not None
                                          else demo is None),
                        link_penetration=not args.no_linkpen, seed=args.seed,

@@ -16,6 +16,7 @@ from pathlib import Path
 
 from rich.console import Console
 
+from dexaug.commands.options import hand_arg
 from dexaug.commands.registry import Handler, Setup, command
 
 #: ``dexaug demo ACTION``: action name → (argument setup, handler), in registration order
@@ -175,4 +176,45 @@ def demo_import(args: argparse.Namespace, console: Console) -> int:
         console.print(describe(item), highlight=False)
     for path in write_imported(imported, args.out, force=args.force):
         console.print(f"wrote {path}", highlight=False)
+    return 0
+
+
+def _script_args(p: argparse.ArgumentParser) -> None:
+    hand_arg(p)
+    p.add_argument("--object", required=True, help="object to demonstrate (YCB id or primitive)")
+    p.add_argument("--out", type=Path, required=True, metavar="DIR",
+                   help="folder for demo_<object>.mcap and demos/<object>.json")
+    p.add_argument("--candidates", type=int, default=60,
+                   help="FSG grasps proposed on the table; default %(default)s")
+    p.add_argument("--tries", type=int, default=8,
+                   help="passing proposals performed and recorded; default %(default)s")
+    p.add_argument("--trial", type=int, default=20,
+                   help="grasps of each candidate's trial augmentation; default %(default)s")
+    p.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
+
+
+@action("script", _script_args)
+def demo_script(args: argparse.Namespace, console: Console) -> int:
+    """Record a scripted demonstration of an object, with no headset and no person.
+
+    FSG proposes grasps of the object resting on the table (manual workspace), lift-drop keeps
+    those that hold, up to --tries of them are performed by the scripted demonstrator in the
+    bridge's scene and recorded; the recording whose demo augments best in a small trial
+    (--trial grasps) is kept as DIR/demo_<object>.mcap with its demo DIR/demos/<object>.json.
+    """
+    from dexaug.pipeline.scripted_demos import script_demo
+    from sim.errors import DexaugError
+    from sim.hand.model import Hand
+    from sim.validate.batch import default_workers
+
+    for name in ("candidates", "tries", "trial"):
+        if getattr(args, name) < 1:
+            raise DexaugError(f"--{name}: expected a count >= 1, got {getattr(args, name)}")
+    made = script_demo(Hand.load(args.hand), args.object, args.out, candidates=args.candidates,
+                       tries=args.tries, trial=args.trial,
+                       workers=args.workers or default_workers())
+    d = made.demo
+    console.print(f"demo {d.id}: fingers {', '.join(d.fingers)}, held {d.duration_s:.2f} s, "
+                  f"trial augmentation passes {100 * made.trial_pass_rate:.0f} %", highlight=False)
+    console.print(f"wrote {made.session}\nwrote {made.demo_file}", highlight=False)
     return 0

@@ -35,8 +35,9 @@ def generation_args(p: argparse.ArgumentParser) -> None:
                    help="dgb: how each grasp's pregrasp and squeeze are made (dexaug: contact "
                    "targets; bodex: squeeze = 2·grasp − pregrasp; dgb-rule: 0.9/1.1 × grasp); "
                    "default: configs/validate.toml [dgb] squeeze_convention")
-    p.add_argument("--table", action="store_true", help="object on a table: keep the palm and "
-                   "fingertips above it")
+    p.add_argument("--table", action=argparse.BooleanOptionalAction, default=None,
+                   help="object on a table: keep the palm and fingertips above it; default: "
+                   "the demo's table when it recorded one (none without a demo)")
     p.add_argument("--no-linkpen", action="store_true", help="skip the link penetration check")
     p.add_argument("--finger-iteration", action=argparse.BooleanOptionalAction, default=None,
                    help="drop the least important finger when a round yields too few grasps "

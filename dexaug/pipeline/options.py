@@ -35,7 +35,9 @@ class AugmentOptions:
     n: int = 200
     validate: str | None = "lift-drop"
     link_penetration: bool = True
-    table: bool = False
+    #: table mode: None follows the demo (its table, when it recorded one), True forces it
+    #: (the demo's table, else a horizontal one under the object), False turns it off
+    table: bool | None = None
     seed: int = 0
     workers: int = field(default_factory=default_workers)
     time_budget_s: float = 120.0

@@ -35,6 +35,7 @@ from augment.autows.cloud import WorkspaceCloud
 from augment.autows.seed import DemoSeed
 from augment.fsg.result import FsgResult
 from augment.fsg.run import generate
+from augment.fsg.table import TablePlane
 from augment.object_cloud import ObjectCloud, object_cloud
 from dexaug.pipeline.options import AugmentOptions, Progress, demo_dir, result_configs, run_key
 from dexaug.pipeline.report import write_report
@@ -48,7 +49,8 @@ from sim.validate.batch import ScenePenetration, validate_many
 from sim.world.objects import ObjectAsset, load_object
 from teleop.record.demos import extract_demos
 
-__all__ = ["augment_demo", "augment_session", "demo_fingers", "generate_grasps", "validate_demo_grasp"]
+__all__ = ["augment_demo", "augment_session", "demo_fingers", "demo_table", "generate_grasps",
+           "validate_demo_grasp"]
 
 log = logging.getLogger(__name__)
 
@@ -98,7 +100,8 @@ def augment_demo(demo: Demo, out_root: Path | str, opts: AugmentOptions | None =
 
     t0 = time.perf_counter()
     tick("fsg", 0, opts.n)
-    res = generate_grasps(hand, cloud, ws, n=opts.n, table=opts.table, finger_names=demo_fingers(demo),
+    res = generate_grasps(hand, cloud, ws, n=opts.n, table=demo_table(demo, opts.table),
+                   finger_names=demo_fingers(demo),
                    link_penetration=opts.link_penetration, seed=opts.seed,
                    finger_iteration=opts.finger_iteration,
                    time_budget_s=opts.time_budget_s, workers=opts.workers)
@@ -173,6 +176,17 @@ def validate_demo_grasp(hand: str, obj: str, demo: Demo, protocol: str,
         log.warning("%s: the demo grasp could not be validated: %s", demo.id, exc)
         return demo_verdict(protocol, False, f"not validated: {exc}")
     return demo_verdict(protocol, r.passed, r.failure, r.displacement_m, r.rotation_rad)
+
+
+def demo_table(demo: Demo | None, table: bool | None) -> TablePlane | bool:
+    """FSG's table for augmenting ``demo`` (:attr:`AugmentOptions.table`): the plane the
+    demo's object rested on (object frame) unless ``table`` is False; with ``table`` True
+    and no recorded table, the paper's horizontal table under the object."""
+    recorded = None if demo is None or demo.table is None else TablePlane.through(
+        demo.table["point_m"], demo.table["normal"])
+    if table is False:
+        return False
+    return recorded if recorded is not None else bool(table)
 
 
 def demo_fingers(demo: Demo) -> tuple[str, ...] | None:
