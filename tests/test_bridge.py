@@ -246,7 +246,8 @@ def test_control_object_commands_and_errors(frames):
         rig.bridge.scene.set_object_pose(np.array([0.0, 0.3, 0.2]), np.array([1.0, 0, 0, 0]))
         assert rig.query("reset_object")["ok"]
         pos, _ = rig.bridge.scene.object_pose()
-        np.testing.assert_allclose(pos[:2], _config().object_pos_m)
+        # demo mode (the default) drops it there and lets it settle: micrometres off the spot
+        np.testing.assert_allclose(pos[:2], _config().object_pos_m, atol=1e-4)
         assert not rig.query("stop_recording")["ok"]          # not recording: an error reply
         assert not rig.query("choose_object", {"object": "no_such_object"})["ok"]
         assert not rig.query("frobnicate")["ok"]

@@ -28,14 +28,15 @@ sim time, simulated and retargeted qpos, palm and object poses, hand–object co
 (:mod:`teleop.bridge.view`) at ``view_rate_hz`` when GL works, rendered in its own thread from
 a copy of the data (:mod:`teleop.bridge.view_stream`); ``/events`` JSON. Control: queryable
 ``dexaug/<rig>/control/**`` (``start_recording``, ``stop_recording``, ``choose_object``,
-``reset_object``, ``mark_grasp``, ``status``), JSON in, JSON out (``{"ok": false, "error":
-...}`` on failure): :mod:`teleop.bridge.control`.
+``reset_object``, ``set_object_mode``, ``mark_grasp``, ``status``), JSON in, JSON out (``{"ok":
+false, "error": ...}`` on failure): :mod:`teleop.bridge.control`.
 
 World layout: the scene's table top is z = 0; the operator's tracking space (local-floor, z up)
 is shifted by ``world_offset_m`` (default 0.8 m down: a table top at a standing operator's
 hip height), applied to the retargeted hand base and to the head. The object rests on the table
-at ``object_pos_m`` (x, y; metres) with ``object_yaw_deg``. Contact records use the object body
-frame (the mesh origin) and the touching hand body's frame.
+at ``object_pos_m`` (x, y; metres) with ``object_yaw_deg``: in ``object_mode`` "demo" dropped
+there, settled and held fixed, in "free" free (:mod:`teleop.bridge.object_mode`). Contact
+records use the object body frame (the mesh origin) and the touching hand body's frame.
 """
 
 from __future__ import annotations
@@ -60,7 +61,7 @@ from sim.hand.model import Hand
 from sim.world.objects import load_object
 from sim.world.scene import PhysicsOptions, Scene
 from teleop import keys as zkeys
-from teleop.bridge.config import BridgeConfig, load_bridge_config
+from teleop.bridge.config import BridgeConfig, check_object_mode, load_bridge_config
 from teleop.bridge.control import BridgeControl
 from teleop.bridge.scene_contacts import contact_records, tip_finger_bodies
 from teleop.bridge.view_stream import ViewStream, gl_backend, head_pose
@@ -100,6 +101,7 @@ class Bridge(BridgeControl):
         if calibration_frames:
             self.retargeter.calibrate_scale(calibration_frames)
         self.object_name = object_name or self.config.object
+        self.object_mode = check_object_mode(self.config.object_mode, "BridgeConfig.object_mode")
         self._build_scene(self.object_name)
 
         self.counts: Counter[str] = Counter()
@@ -141,12 +143,11 @@ class Bridge(BridgeControl):
 
     def _build_scene(self, object_name: str) -> None:
         obj = load_object(object_name)
-        self.scene = Scene(self.hand, obj, table=self.config.table,
+        self.scene = Scene(self.hand, obj, table=self.config.table, object_hold=True,
                            physics=PhysicsOptions(timestep_s=self.config.timestep_s))
         self.object_name = object_name
         self._tip_fingers = tip_finger_bodies(self.scene)
         self._object_home = self._home_pose(obj)
-        self.scene.set_object_pose(*self._object_home)
         q = getattr(self, "_q_target", None)
         q = self.hand.open_pose if q is None else q
         self.scene.set_hand_joints(q)
@@ -154,7 +155,7 @@ class Bridge(BridgeControl):
         # park the hand above the table until the first frame arrives
         park = np.array([*self.config.object_pos_m, 0.0]) + np.array([-0.2, 0.0, 0.3])
         self.scene.set_hand_pose(park, np.array([1.0, 0.0, 0.0, 0.0]), teleport=True)
-        mujoco.mj_forward(self.scene.model, self.scene.data)
+        self._place_object()  # after parking: the hand must not be where the object drops
 
     def _home_pose(self, obj: Any) -> tuple[Array, Array]:
         """The object resting on the table top at ``object_pos_m``/``object_yaw_deg``."""

@@ -10,13 +10,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from sim.config import Section, load_toml
+from sim.errors import ConfigError
 from teleop.retarget.config import TELEOP_CONFIG
 
-__all__ = ["OBJECT_MODES", "BridgeConfig", "load_bridge_config"]
+__all__ = ["OBJECT_MODES", "BridgeConfig", "check_object_mode", "load_bridge_config"]
 
 Array = np.ndarray
 
@@ -85,7 +87,8 @@ def load_bridge_config(path: Path | str | None = None) -> BridgeConfig:
         object_pos_m=np.array(sec.floats("object_pos_m", 2, list(d.object_pos_m))),
         object_yaw_deg=sec.float("object_yaw_deg", d.object_yaw_deg),
         table=sec.bool("table", d.table),
-        object_mode=_object_mode(sec),
+        object_mode=check_object_mode(sec.str("object_mode", d.object_mode),
+                                      sec.where("object_mode")),
         settle_speed_mps=sec.float("settle_speed_mps", d.settle_speed_mps, min=1e-6),
         settle_still_s=sec.float("settle_still_s", d.settle_still_s, min=0.0),
         settle_timeout_s=sec.float("settle_timeout_s", d.settle_timeout_s, min=0.0),
@@ -97,8 +100,9 @@ def load_bridge_config(path: Path | str | None = None) -> BridgeConfig:
     )
 
 
-def _object_mode(sec: Section) -> str:
-    mode = sec.str("object_mode", BridgeConfig.object_mode)
+def check_object_mode(mode: Any, where: str) -> str:
+    """``mode`` if it is one of :data:`OBJECT_MODES`, else ConfigError naming ``where`` (a
+    file and key, a control request, a session's metadata)."""
     if mode not in OBJECT_MODES:
-        raise sec.error("object_mode", f"expected one of {', '.join(OBJECT_MODES)}, got {mode!r}")
-    return mode
+        raise ConfigError(f"{where}: expected one of {', '.join(OBJECT_MODES)}, got {mode!r}")
+    return str(mode)

@@ -6,9 +6,15 @@ steps (:meth:`BridgeControl._drain_controls`); when no loop runs, the caller's t
 JSON in, JSON out: ``{"ok": true, ...}`` or ``{"ok": false, "error": ...}``, never an
 exception. ``status`` is answered from the zenoh thread and never waits for the loop.
 
-Commands (:data:`teleop.keys.CONTROL_COMMANDS`): ``start_recording`` (``path``, ``overwrite``),
+Commands (:data:`COMMANDS`): ``start_recording`` (``path``, ``overwrite``),
 ``stop_recording`` (``reason``), ``choose_object`` (``object``), ``reset_object``,
-``mark_grasp`` (extra keys go into the event), ``status``. Events go out on ``/events`` and,
+``set_object_mode`` (``object_mode`` "demo" or "free": the object is put back on its spot in
+that mode, :mod:`teleop.bridge.object_mode`), ``mark_grasp`` (extra keys go into the event),
+``status``. A recording's metadata names the ``object_mode`` and the ``table``
+(:func:`teleop.bridge.object_mode.table_record`) it started with, and every placement event
+(``object_changed``, ``object_reset``; after a mode change with the ``previous`` mode) names
+the mode from then on and how the drop went, so the mode of every step is known. Events go out
+on ``/events`` and,
 when recording, to the session's ``/events`` with the simulated time of the step they happen
 at (``t_s``, seconds; a ``grasp_mark`` also names the ``seq`` of the last frame answered), the
 clock demo extraction matches them on.
@@ -29,23 +35,26 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import mujoco
 import numpy as np
 import zenoh
 
 from sim.hand.model import Hand
 from sim.world.scene import Scene
 from teleop import keys as zkeys
-from teleop.bridge.config import BridgeConfig
+from teleop.bridge.config import BridgeConfig, check_object_mode
+from teleop.bridge.object_mode import Placement, place_object, table_record
 from teleop.bridge.view_stream import ViewStream
 from teleop.record.contact_record import ContactRecord
 from teleop.record.recorder import SessionRecorder
 from teleop.retarget.retargeter import Retargeter
 
-__all__ = ["BridgeControl"]
+__all__ = ["COMMANDS", "BridgeControl"]
 
 logger = logging.getLogger(__name__)
 Array = np.ndarray
+
+#: the bridge's control commands: the rig's common ones and the object mode switch
+COMMANDS: tuple[str, ...] = (*zkeys.CONTROL_COMMANDS, "set_object_mode")
 
 
 class _Pending:
@@ -67,6 +76,8 @@ class BridgeControl:
     retargeter: Retargeter
     scene: Scene
     object_name: str
+    object_mode: str
+    placement: Placement
     counts: Counter[str]
     loop_running: bool
     _lock: threading.Lock
@@ -99,9 +110,9 @@ class BridgeControl:
                 raise ValueError("the payload must be a JSON object")
             if command == "status":
                 result = self.status()
-            elif command not in zkeys.CONTROL_COMMANDS:
+            elif command not in COMMANDS:
                 result = {"ok": False, "error": f"unknown command {command!r}; one of "
-                                                 f"{list(zkeys.CONTROL_COMMANDS)}"}
+                                                 f"{list(COMMANDS)}"}
             else:
                 result = self.control(command, args, timeout_s=10.0)
         except Exception as exc:
@@ -157,7 +168,8 @@ class BridgeControl:
                 "joint_names": list(self.hand.joint_names),
                 "fingers": list(self.hand.finger_names), "rig": self.keys.rig,
                 "world_offset_m": list(map(float, self.config.world_offset_m)),
-                "deterministic": self.config.deterministic}
+                "deterministic": self.config.deterministic, "object_mode": self.object_mode,
+                "table": table_record(self.scene)}
         self._recorder = SessionRecorder(path, metadata=meta, overwrite=bool(args.get("overwrite")))
         self._recording_path = path
         logger.info("recording to %s", path)
@@ -186,14 +198,29 @@ class BridgeControl:
         self._t0_wall, self._steps_done = None, 0
         if was_view:
             self._view.start(self.scene.model)
-        self._event("object_changed", {"object": name})
+        self._event("object_changed", {"object": name, **self.placement.to_json()})
         return {"object": name}
 
+    def _place_object(self) -> Placement:
+        """The object at its home pose for the current mode (demo: dropped, settled, held)."""
+        self.placement = place_object(self.scene, self._object_home, self.object_mode, self.config)
+        return self.placement
+
     def _cmd_reset_object(self, args: dict[str, Any]) -> dict[str, Any]:
-        self.scene.set_object_pose(*self._object_home)
-        mujoco.mj_forward(self.scene.model, self.scene.data)
-        self._event("object_reset", {"object": self.object_name})
+        placement = self._place_object()
+        self._event("object_reset", {"object": self.object_name, **placement.to_json()})
         return {"object": self.object_name}
+
+    def _cmd_set_object_mode(self, args: dict[str, Any]) -> dict[str, Any]:
+        mode = check_object_mode(args.get("object_mode"), "set_object_mode: object_mode")
+        previous = self.object_mode
+        if mode == previous:
+            return {"object_mode": mode, "changed": False}
+        self.object_mode = mode
+        placement = self._place_object()
+        self._event("object_reset", {"object": self.object_name, "previous": previous,
+                                     **placement.to_json()})
+        return {"object_mode": mode, "changed": True}
 
     def _cmd_mark_grasp(self, args: dict[str, Any]) -> dict[str, Any]:
         fingers = sorted({c.finger for c in self._last_contacts if c.finger})
@@ -212,5 +239,6 @@ class BridgeControl:
                 "recording": str(self._recording_path) if self._recording_path else None,
                 "last_seq": self._last_seq, "sim_time_s": self.sim_time_s,
                 "view": self.view_active, "loop_running": self.loop_running,
-                "deterministic": self.config.deterministic}
+                "deterministic": self.config.deterministic, "object_mode": self.object_mode,
+                "object_held": self.scene.object_held}
 

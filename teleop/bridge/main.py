@@ -1,7 +1,8 @@
 """``dexaug bridge``: run one :class:`teleop.bridge.bridge.Bridge` in the foreground.
 
 Why a module of its own: the command-line entry point owns the process-level choices (the
-config file, the listening port, recording from the start, a hook after each recording) and
+config file, the listening port, the object mode, recording from the start, a hook after each
+recording) and
 the Ctrl-C handling, none of which a bridge used as a library (rerecording, tests) wants.
 """
 
@@ -12,7 +13,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from teleop.bridge.bridge import Bridge
-from teleop.bridge.config import load_bridge_config
+from teleop.bridge.config import check_object_mode, load_bridge_config
 
 __all__ = ["bridge_main"]
 
@@ -23,19 +24,23 @@ def bridge_main(hand: str, obj: str | None = None, rig: str = "local", *,
                 config_path: Path | str | None = None, listen_port: int | None = 7447,
                 connect_ports: tuple[int, ...] = (), duration_s: float | None = None,
                 record: Path | str | None = None, view: bool | None = None,
+                object_mode: str | None = None,
                 on_recording_closed: Callable[[Path], None] | None = None) -> int:
-    """``dexaug bridge``: run a bridge until Ctrl-C (or ``duration_s``); ``record`` starts a
-    recording at that path right away; ``on_recording_closed(path)`` runs after each recording
-    is closed (e.g. to augment it). Returns a process exit code."""
+    """``dexaug bridge``: run a bridge until Ctrl-C (or ``duration_s``); ``object_mode``
+    ("demo" or "free") overrides the config's; ``record`` starts a recording at that path right
+    away; ``on_recording_closed(path)`` runs after each recording is closed (e.g. to augment
+    it). Returns a process exit code."""
     cfg = load_bridge_config(config_path)
     if view is not None:
         cfg.view_enabled = view
+    if object_mode is not None:
+        cfg.object_mode = check_object_mode(object_mode, "--object-mode")
     with Bridge(hand, obj, rig, cfg, listen_port=listen_port, connect_ports=tuple(connect_ports),
                 on_recording_closed=on_recording_closed) as bridge:
         if record is not None:
             bridge.control("start_recording", {"path": str(record)})
-        logger.info("bridge %s: hands on %s, state on %s, control on %s", rig,
-                    bridge.keys.hands, bridge.keys.state, bridge.keys.control)
+        logger.info("bridge %s: hands on %s, state on %s, control on %s, object mode %s", rig,
+                    bridge.keys.hands, bridge.keys.state, bridge.keys.control, bridge.object_mode)
         try:
             bridge.run(duration_s=duration_s)
         except KeyboardInterrupt:

@@ -7,7 +7,9 @@ and demo extraction needs both. Re-recording replays the ``/hands`` bytes over z
 in order with a fixed number of physics steps, so the output depends only on the input) and
 records what the bridge does, exactly as a live session would be recorded. Operator
 ``grasp_mark`` events of the source are re-issued to the bridge at the same input frame, so
-explicit marks survive. It lives with the bridge it drives: :mod:`teleop.record` (sessions,
+explicit marks survive. The object is in the session's mode on the session's table
+(:mod:`teleop.bridge.session_mode`: an older session without them ran free). It lives with the
+bridge it drives: :mod:`teleop.record` (sessions,
 replay, demos) stays below the bridge and never runs one.
 """
 
@@ -27,6 +29,7 @@ from sim.transforms import quat_to_mat
 from teleop import keys as zkeys
 from teleop.bridge.bridge import Bridge
 from teleop.bridge.config import BridgeConfig, load_bridge_config
+from teleop.bridge.session_mode import session_config
 from teleop.record.replay import hands_publisher, play
 from teleop.record.schemas import TOPIC_HANDS
 from teleop.record.session import Session, open_session
@@ -64,12 +67,13 @@ def _placement(cfg: BridgeConfig, meta: dict[str, Any]) -> BridgeConfig:
 
 
 def rerecord(src_path: Path | str, out_path: Path | str, *, hand: str | None = None,
-             object_name: str | None = None, rig: str = "rerecord", view: bool = False,
-             timeout_s: float = 120.0) -> Path:
+             object_name: str | None = None, object_mode: str | None = None,
+             rig: str = "rerecord", view: bool = False, timeout_s: float = 120.0) -> Path:
     """Replay the ``/hands`` of ``src_path`` through a bridge and record to ``out_path``.
 
     ``hand`` and ``object_name`` default to the source's metadata, and so does the object's
-    placement on the table (when recorded). The output is written to a
+    placement on the table (when recorded); ``object_mode`` ("demo" or "free") to the
+    source's, "free" for an older session. The output is written to a
     temporary name and renamed when complete, so an interrupted run leaves nothing behind.
 
     Raises:
@@ -86,7 +90,8 @@ def rerecord(src_path: Path | str, out_path: Path | str, *, hand: str | None = N
     messages = list(src.messages(TOPIC_HANDS, decode=False))
     payloads = [(m.log_time_ns * 1e-9, m.data) for m in messages]
     marks = _mark_indices(src, np.array([m.log_time_ns for m in messages], dtype=np.int64))
-    cfg = _placement(load_bridge_config(), src.metadata)
+    cfg = session_config(_placement(load_bridge_config(), src.metadata), src.metadata,
+                         src_path, object_mode)
     cfg = dataclasses.replace(cfg, deterministic=True, view_enabled=view)
     port = zkeys.free_tcp_port()
     out_path = Path(out_path)
@@ -111,6 +116,6 @@ def rerecord(src_path: Path | str, out_path: Path | str, *, hand: str | None = N
             bridge.control("stop_recording")
         finally:
             client.close()
-    logger.info("re-recorded %s (%d frames, %d marks) to %s", src_path, len(payloads),
-                len(marks), out_path)
+    logger.info("re-recorded %s (%d frames, %d marks, object mode %s) to %s", src_path,
+                len(payloads), len(marks), cfg.object_mode, out_path)
     return out_path

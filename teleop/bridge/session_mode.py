@@ -1,0 +1,84 @@
+"""A recorded session's object mode and table, for running its input through a bridge again.
+
+Why: a session recorded since the demonstration mode names the bridge's ``object_mode`` and
+its ``table`` in its metadata (:mod:`teleop.bridge.control`); replaying or re-recording it
+should put the object in the same situation, or the operator's input meets a different world.
+Older sessions, and raw-input ones that never went through a bridge (a synthetic operator's, a
+capture), name neither: they ran with a free object, so they are treated as ``"free"`` with the
+table of the bridge's config, and that is logged. An explicit mode (``--object-mode``, the
+``object_mode`` argument) wins over the session's.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import time
+from pathlib import Path
+from typing import Any
+
+import zenoh
+
+from sim.errors import ConfigError
+from teleop import keys as zkeys
+from teleop.bridge.config import BridgeConfig, check_object_mode
+
+__all__ = ["session_config", "session_object_mode", "tell_bridge"]
+
+logger = logging.getLogger(__name__)
+
+_OLD_MODE = "free"  # what a session without an object_mode key ran in
+
+
+def session_object_mode(meta: dict[str, Any], source: Path | str,
+                        object_mode: str | None = None) -> str:
+    """``object_mode`` if given, else the session's, else ``"free"`` (an older session)."""
+    if object_mode is not None:
+        return check_object_mode(object_mode, "object_mode")
+    if "object_mode" not in meta:
+        logger.info("%s: no object_mode in its metadata (an older or raw-input session): "
+                    "treated as %r", source, _OLD_MODE)
+        return _OLD_MODE
+    return check_object_mode(meta["object_mode"], f"{source}: metadata object_mode")
+
+
+def _session_table(meta: dict[str, Any], source: Path | str, cfg: BridgeConfig) -> bool:
+    """Whether the session had a table (its ``table`` record), else the config's choice."""
+    if "table" not in meta:
+        logger.info("%s: no table in its metadata: the bridge config's (table = %s)", source,
+                    str(cfg.table).lower())
+        return cfg.table
+    table = meta["table"]
+    if table is not None and not (isinstance(table, dict) and "top_z_m" in table):
+        raise ConfigError(f"{source}: metadata table: expected null or an object with top_z_m, "
+                          f"center_m, half_extents_m, got {table!r}")
+    return table is not None
+
+
+def session_config(cfg: BridgeConfig, meta: dict[str, Any], source: Path | str,
+                   object_mode: str | None = None) -> BridgeConfig:
+    """``cfg`` with the session's object mode (:func:`session_object_mode`) and table."""
+    return dataclasses.replace(cfg, object_mode=session_object_mode(meta, source, object_mode),
+                               table=_session_table(meta, source, cfg))
+
+
+def tell_bridge(client: zenoh.Session, rig: str, mode: str, *, wait_s: float = 5.0
+                ) -> dict[str, Any] | None:
+    """Ask the bridge of ``rig`` to switch to ``mode`` (``set_object_mode``); its reply, or
+    None with a warning when no bridge answered within ``wait_s`` (seconds: a freshly opened
+    peer sees the bridge's queryable only once the routes are up) or it refused."""
+    key = zkeys.RigKeys(rig).control_cmd("set_object_mode")
+    t_end = time.perf_counter() + wait_s
+    while True:
+        try:
+            reply = zkeys.query_json(client, key, {"object_mode": mode}, timeout_s=1.0)
+            break
+        except RuntimeError as exc:
+            if time.perf_counter() >= t_end:
+                logger.warning("%s: no bridge set the object mode to %r: %s", key, mode, exc)
+                return None
+            time.sleep(0.1)
+    if not reply.get("ok"):
+        logger.warning("%s: the bridge refused object mode %r: %s", key, mode, reply.get("error"))
+        return None
+    return reply
