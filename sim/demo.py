@@ -46,6 +46,9 @@ class Demo:
         table: the support the object rested on during the demonstration, when known: the
             plane in the object frame, ``{"point_m": (3,) a point on it, metres, "normal": (3,)
             its upward unit normal}``; None (the default, and older demo files) when unknown.
+        flags: quality warnings extraction found (the object slipped in the hand, only a
+            fragment of a larger grasp touched); empty when none. A flagged demo still
+            augments: the flags tell the user to re-record it.
     """
 
     id: str
@@ -62,6 +65,7 @@ class Demo:
     duration_s: float = 0.0
     fingers: tuple[str, ...] = field(default=())
     table: dict[str, np.ndarray] | None = None
+    flags: tuple[str, ...] = field(default=())
 
     @property
     def grasp(self) -> Grasp:
@@ -77,7 +81,8 @@ def demo_to_json(demo: Demo) -> dict[str, Any]:
            "contact_points_obj_m": {k: v.tolist() for k, v in demo.contact_points_obj.items()},
            "source": str(demo.source), "time_s": demo.time_s, "how": demo.how,
            "duration_s": demo.duration_s, "fingers": list(demo.fingers),
-           "table": None if demo.table is None else {k: v.tolist() for k, v in demo.table.items()}}
+           "table": None if demo.table is None else {k: v.tolist() for k, v in demo.table.items()},
+           "flags": list(demo.flags)}
 
 
 def save_demo(path: Path | str, demo: Demo) -> None:
@@ -127,6 +132,7 @@ def load_demo(path: Path | str) -> Demo:
                                         for k, v in doc.get("contact_points_obj_m", {}).items()},
                     source=Path(doc.get("source", path)), time_s=float(doc.get("time_s", 0.0)),
                     how=str(doc.get("how", "file")), duration_s=float(doc.get("duration_s", 0)),
-                    fingers=tuple(doc.get("fingers", ())), table=table())
+                    fingers=tuple(doc.get("fingers", ())), table=table(),
+                    flags=tuple(str(f) for f in doc.get("flags", ())))
     except KeyError as exc:
         raise DemoError(f"{path}: missing field {exc}") from None

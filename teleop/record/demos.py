@@ -35,6 +35,7 @@ grasp, and the recording's contacts are the robot's, in the robot fingertip fram
 
 from __future__ import annotations
 
+import functools
 import logging
 from dataclasses import dataclass
 from pathlib import Path
@@ -43,7 +44,9 @@ from typing import Any
 import numpy as np
 
 from sim.demo import Demo, DemoError
+from sim.hand.model import Hand
 from sim.transforms import pose_inv, pose_mul
+from teleop.record.demo_quality import fragment_flag, slip_flag, table_in_object_frame
 from teleop.record.schemas import TOPIC_CONTACTS, TOPIC_STATE
 from teleop.record.session import Session, SessionError, open_session
 
@@ -166,7 +169,7 @@ def _best_in(track: _Track, lo: int, hi: int) -> int:
 
 
 def _demo_at(session: Session, track: _Track, i: int, hand: str, obj: str, how: str,
-             duration_s: float) -> Demo:
+             duration_s: float, run_end: int | None) -> Demo:
     s = track.states[i]
     joints = np.asarray(s["qpos"], float)
     inv_p, inv_q = pose_inv(np.asarray(s["object_pos_m"], float),
@@ -180,10 +183,26 @@ def _demo_at(session: Session, track: _Track, i: int, hand: str, obj: str, how: 
         tip[finger] = np.mean([c["pos_hand_body_m"] for c in mine], axis=0)
         pts[finger] = np.array([c["pos_object_m"] for c in mine], float)
     t_s = (int(track.t_ns[i]) - int(session.start_time_ns or track.t_ns[0])) * 1e-9
-    return Demo(id=f"{session.path.stem}@{t_s:.2f}s", hand=hand, object=obj, joints=joints,
+    meta = session.metadata
+    fingers = tuple(sorted(track.fingers_touching[i]))
+    flags = [fragment_flag(_hand(hand), joints, fingers)]
+    if meta.get("object_mode", "free") == "free" and run_end is not None:
+        flags.append(slip_flag(track.states[i:run_end]))
+    demo = Demo(id=f"{session.path.stem}@{t_s:.2f}s", hand=hand, object=obj, joints=joints,
                 palm_pos_m=palm_p, palm_quat_wxyz=palm_q, tip_contacts=tip,
                 contact_points_obj=pts, source=session.path, time_s=t_s, how=how,
-                duration_s=duration_s, fingers=tuple(sorted(track.fingers_touching[i])))
+                duration_s=duration_s, fingers=fingers,
+                table=table_in_object_frame(meta.get("table"), s["object_pos_m"],
+                                            s["object_quat_wxyz"]),
+                flags=tuple(f for f in flags if f))
+    for flag in demo.flags:
+        log.warning("%s: demo %s: %s", session.path, demo.id, flag)
+    return demo
+
+
+@functools.lru_cache(maxsize=8)
+def _hand(name: str) -> Hand:
+    return Hand.load(name)
 
 
 def extract_demos(path: Path | str, params: DemoParams | None = None) -> list[Demo]:
@@ -226,19 +245,19 @@ def extract_demos(path: Path | str, params: DemoParams | None = None) -> list[De
             runs.append((lo, hi, dur))
     marks = _mark_states(session, track, p, lead, ok)
     window_ns = p.mark_window_s * 1e9
-    moments: dict[int, tuple[str, float]] = {}
+    moments: dict[int, tuple[str, float, int | None]] = {}
     for lo, hi, dur in runs:
         near = [m for m in marks
                 if clock[lo] - window_ns <= clock[m] <= clock[hi - 1] + window_ns]
         marks = [m for m in marks if m not in near]
         moments[near[0] if near else _best_in(track, lo, hi)] = (
-            "grasp_mark" if near else "stable contact", dur)
+            "grasp_mark" if near else "stable contact", dur, hi)
     for m in marks:
-        moments[m] = ("grasp_mark", 0.0)
+        moments[m] = ("grasp_mark", 0.0, None)
     if not moments:
         raise DemoError(f"{path}: no usable grasp: {_why_not(track, n_touch, ok, lead, p)}")
-    return [_demo_at(session, track, i, hand, obj, how, dur)
-            for i, (how, dur) in sorted(moments.items())]
+    return [_demo_at(session, track, i, hand, obj, how, dur, end)
+            for i, (how, dur, end) in sorted(moments.items())]
 
 
 def _mark_states(session: Session, track: _Track, p: DemoParams, lead: str,

@@ -30,6 +30,7 @@ from sim.transforms import pose_mul
 from sim.validate.validator import Validator
 from sim.world.objects import load_object
 from sim.world.scene import Scene
+from teleop.bridge.object_mode import table_record
 from teleop.bridge.scene_contacts import contact_records, tip_finger_bodies
 from teleop.record.recorder import SessionRecorder
 
@@ -63,7 +64,8 @@ def record_scripted_demo(hand: Hand, object_name: str, grasp: Grasp, out: Path |
     tips = tip_finger_bodies(scene)
     meta = {"hand": hand.name, "object": object_name, "joint_names": list(hand.joint_names),
             "fingers": list(hand.finger_names), "scripted": True,
-            "object_pos_m": obj_pos.tolist(), "rig": "scripted"}
+            "object_pos_m": obj_pos.tolist(), "rig": "scripted",
+            "object_mode": "free", "table": table_record(scene)}
     dt = m.opt.timestep
     stepped = 0
     with SessionRecorder(out, metadata=meta, overwrite=overwrite, start_time_ns=0) as rec:
