@@ -33,9 +33,11 @@ OBJECT = "004_sugar_box"
 SCRIPTED = REPO_ROOT / "recordings" / "demo_005_tomato_soup_can.mcap"
 
 
-def _record(path: Path, *, mark: bool) -> Path:
+def _record(path: Path, *, mark: bool, on_recording_closed: Callable[[Path], None] | None = None
+            ) -> Path:
     """The grasp of the module docstring through a real bridge, recorded to ``path``; with
-    ``mark`` a ``mark_grasp`` control once the hand has closed."""
+    ``mark`` a ``mark_grasp`` control once the hand has closed; ``on_recording_closed`` is the
+    bridge's hook (``--auto-augment``'s)."""
     from teleop.bridge.bridge import Bridge
     from teleop.bridge.config import load_bridge_config
     from teleop.record.replay import hands_publisher, play
@@ -58,7 +60,7 @@ def _record(path: Path, *, mark: bool) -> Path:
                               object_pos_m=(np.asarray(ep.object_pos_m) + cfg.world_offset_m)[:2])
     port = keys.free_tcp_port()
     with Bridge("shadow_right", OBJECT, "demo", cfg, listen_port=port,
-                calibration_frames=ep.frames) as bridge:
+                calibration_frames=ep.frames, on_recording_closed=on_recording_closed) as bridge:
         client = keys.open_session(connect_ports=[port])
         try:
             bridge.start()

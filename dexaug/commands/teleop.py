@@ -8,7 +8,7 @@ recording to ``dexaug augment`` in a background process.
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -189,6 +189,8 @@ def _bridge_args(p: argparse.ArgumentParser) -> None:
                    "background process, so the bridge keeps running)")
     p.add_argument("--augment-out", type=Path, default=Path("datasets"),
                    help="--auto-augment: output folder (default ./datasets)")
+    p.add_argument("--augment-n", type=int, default=200,
+                   help="--auto-augment: grasps per demo; default %(default)s")
 
 
 @command("bridge", _bridge_args)
@@ -200,6 +202,7 @@ def bridge(args: argparse.Namespace, console: Console) -> int:
     dexaug/<rig>/view, and answers dexaug/<rig>/control/** (start_recording, stop_recording,
     choose_object, reset_object, set_object_mode, mark_grasp, status). Ctrl-C stops it.
     """
+    from sim.errors import DexaugError
     from teleop.bridge.main import bridge_main
 
     console.print(f"bridge on rig {args.rig!r}, listening on tcp/127.0.0.1:{args.listen}")
@@ -218,7 +221,10 @@ def bridge(args: argparse.Namespace, console: Console) -> int:
         lan = [a for a in local_addresses() if a != "127.0.0.1"]
         console.print(f"headset page: {url}" + "".join(f"  or  {scheme}://{a}:{ingest.port}/"
                                                         for a in lan), soft_wrap=True)
-    hook = _auto_augment(args.augment_out, console) if args.auto_augment else None
+    if args.augment_n < 1:
+        raise DexaugError(f"--augment-n: expected a count >= 1, got {args.augment_n}")
+    hook = (_auto_augment(args.augment_out, console, ("--n", str(args.augment_n)))
+            if args.auto_augment else None)
     try:
         return bridge_main(args.hand, args.object, args.rig, listen_port=args.listen,
                            connect_ports=tuple(args.connect) + extra_ports,
@@ -230,9 +236,11 @@ def bridge(args: argparse.Namespace, console: Console) -> int:
             ingest.close()
 
 
-def _auto_augment(out: Path, console: Console) -> Callable[[Path], None]:
-    """A recording-closed hook that starts ``dexaug augment PATH --out OUT`` in its own process
-    (its log goes to ``OUT/<session>.augment.log``), so augmentation never stalls the bridge."""
+def _auto_augment(out: Path, console: Console,
+                  augment_args: Sequence[str] = ()) -> Callable[[Path], None]:
+    """A recording-closed hook that starts ``dexaug augment PATH --out OUT [augment_args]`` in
+    its own process (its log goes to ``OUT/<session>.augment.log``), so augmentation never
+    stalls the bridge."""
     import subprocess
     import sys
 
@@ -241,8 +249,8 @@ def _auto_augment(out: Path, console: Console) -> Callable[[Path], None]:
         log_path = out / f"{path.stem}.augment.log"
         with open(log_path, "ab") as log_file:
             subprocess.Popen([sys.executable, "-m", "dexaug", "augment", str(path), "--out",
-                              str(out)], stdout=log_file, stderr=subprocess.STDOUT,
-                             stdin=subprocess.DEVNULL)
+                              str(out), *augment_args], stdout=log_file,
+                             stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
         console.print(f"augmenting {path} in the background (log: {log_path})")
 
     return start
