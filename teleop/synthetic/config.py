@@ -27,9 +27,10 @@ class SynthConfig:
     length of a burst, uniform). Hand: hand_length_m (wrist → middle tip, straight hand).
     tip_surface_snap_m: reference pulp sites closer than this to the object surface are put
     on it before the operator's fingers are fitted (0: imitate the reference exactly).
-    press_depth_m: how far past the surface the operator closes the fingertips (mapped onto
-    the robot): without touch feedback a person closes until the object stops the fingers,
-    and a robot fingertip aimed at the surface stops short of it by the retargeting error.
+    press_depth_m: in a generic grasp (no reference), how far past the surface the operator
+    closes the fingertips (mapped onto the robot): without touch feedback a person closes
+    until the object stops the fingers, and a robot fingertip aimed at the surface stops
+    short of it by the retargeting error.
     Episode: approach_distance_m (start of the wrist, back along the palm normal and up),
     lift_height_m, and the phase durations in seconds. Scene: object_pos_m / object_rpy_deg
     (object frame in the world when the caller gives none), head_pos_m, head_pitch_deg
@@ -52,7 +53,7 @@ class SynthConfig:
     still_s: float = 0.4
     approach_s: float = 1.5
     close_s: float = 0.8
-    settle_s: float = 0.4
+    settle_s: float = 0.8
     lift_s: float = 1.0
     hold_s: float = 1.0
     release_s: float = 0.8

@@ -10,9 +10,9 @@ pulp site, by a small bounded least-squares fit of that finger's human joint ang
 robot pulp sites of a reference grasp lie on the object surface (within
 ``tip_surface_snap_m`` they are snapped onto it first), so retargeting puts the robot
 fingertips on it up to the human hand's reach residual and the IK error. Without a reference
-grasp, a generic side grasp is used: palm facing the object's centre from the operator's side
-(−x world), fingers up, and the closure level (open → power grasp) that brings the mapped
-fingertips closest to the object surface, a one-parameter search that needs no IK.
+grasp, the generic grasp is searched (:mod:`teleop.synthetic.grasp_search`): wrist placements
+from the operator's side and from above × per-finger closure levels, scored on where the
+robot fingertips would land.
 
 World frame, metres; rotations as 3×3 matrices.
 """
@@ -29,10 +29,10 @@ import numpy as np
 from sim.errors import ConfigError
 from sim.hand.model import Hand
 from sim.transforms import quat_to_mat
-from teleop.messages import JOINT_INDEX
 from teleop.synthetic.correspondence import Correspondence
-from teleop.synthetic.human_hand import FINGERS, LONG_FINGERS, HandPose, HumanHand, finger_of, lerp_pose
-from teleop.synthetic.surface import closest_surface_points, surface_distance_m
+from teleop.synthetic.grasp_search import search_grasp
+from teleop.synthetic.human_hand import LONG_FINGERS, HandPose, HumanHand, finger_of
+from teleop.synthetic.surface import closest_surface_points
 
 __all__ = ["GraspTarget", "grasp_target"]
 
@@ -66,7 +66,8 @@ def grasp_target(robot: Hand, human: HumanHand, corr: Correspondence, scale: flo
     hand ``robot``: imitating its reference grasp for the object (or ``grasp_name``), else a
     generic side grasp (module docstring). ``scale``: the retargeter's fingertip scale for this
     operator; ``snap_m``: reference pulp sites this close to the surface go onto it;
-    ``press_m``: the operator closes the fingertips this far past the surface (metres)."""
+    ``press_m``: in a generic grasp, the operator closes the fingertips this far past the
+    surface (metres)."""
     ref = _reference_for(robot, object_name, grasp_name)
     residual: dict[str, float] = {}
     if ref is not None:
@@ -76,7 +77,7 @@ def grasp_target(robot: Hand, human: HumanHand, corr: Correspondence, scale: flo
         tips_palm = robot.fingertip_sites(ref.grasp.joints, frame="palm")[0]
         if snap_m > 0.0:
             tips_palm = _snap_tips(tips_palm, object_name, ref.grasp.palm_pos,
-                                   quat_to_mat(ref.grasp.palm_quat_wxyz), snap_m, press_m)
+                                   quat_to_mat(ref.grasp.palm_quat_wxyz), snap_m)
         grasp_pose = HandPose.relaxed()
         for k, robot_finger in enumerate(robot.finger_names):
             joint = corr.mapping.fingers.get(robot_finger)
@@ -93,7 +94,7 @@ def grasp_target(robot: Hand, human: HumanHand, corr: Correspondence, scale: flo
                     {k: round(v, 4) for k, v in residual.items()})
     else:
         wrist_pos, wrist_rot, grasp_pose, residual = _generic_grasp(
-            human, corr, scale, object_name, obj_pos, obj_rot, press_m)
+            robot, human, corr, scale, object_name, obj_pos, obj_rot, press_m)
         palm_pos, palm_rot = corr.palm_for_wrist(wrist_pos, wrist_rot)
     return GraspTarget(wrist_pos_m=wrist_pos, wrist_rot=wrist_rot, pose=grasp_pose,
                        palm_pos_m=palm_pos, palm_rot=palm_rot, residual_m=residual,
@@ -118,23 +119,20 @@ def _reference_for(hand: Hand, object_name: str, grasp_name: str | None) -> Any:
 
 
 def _snap_tips(tips_palm: Array, object_name: str, palm_pos_obj: Array, palm_rot_obj: Array,
-               max_gap_m: float, press_m: float) -> Array:
+               max_gap_m: float) -> Array:
     """Reference pulp sites (frame_palm) within ``max_gap_m`` of the object's surface moved
-    onto it (closest point) and ``press_m`` past it, toward the object's inside. Why: hand-built
-    reference grasps touch the object with whatever part of the finger met it first, so their
-    pulp sites sit up to ~1.5 cm off the surface; an operator grasping the object puts the
-    finger *pads* on it and closes until the object stops them. Fingers farther away (the
-    reference's unused fingers) keep their place."""
+    onto it (closest point). Why: hand-built reference grasps touch the object with whatever
+    part of the finger met it first, so their pulp sites sit up to ~1.5 cm off the surface;
+    an operator grasping the object puts the finger *pads* on it. Fingers farther away (the
+    reference's unused fingers) keep their place. (No press past the surface here: a
+    reference grasp's pads on a thin wall, a bowl's rim, would aim through it.)"""
     from sim.world.objects import load_object
 
     mesh = load_object(object_name).surface_mesh()
     tips_obj = palm_pos_obj + tips_palm @ palm_rot_obj.T
     closest, signed = closest_surface_points(mesh, tips_obj)
     snap = np.abs(signed) <= max_gap_m
-    inward = closest - tips_obj                       # toward the surface from outside
-    norm = np.linalg.norm(inward, axis=1, keepdims=True)
-    inward = np.where(norm > 1e-9, inward / np.maximum(norm, 1e-12) * np.sign(signed)[:, None], 0.0)
-    tips_obj = np.where(snap[:, None], closest + press_m * inward, tips_obj)
+    tips_obj = np.where(snap[:, None], closest, tips_obj)
     logger.info("reference pulp sites off the surface (m): %s; snapped: %s",
                 np.round(signed, 4).tolist(), snap.tolist())
     return (tips_obj - palm_pos_obj) @ palm_rot_obj
@@ -152,34 +150,21 @@ def _fill_unmapped(pose: HandPose, mapped_joints: Iterable[str]) -> None:
             pose.fingers[f] = mean.copy()
 
 
-def _generic_grasp(human: HumanHand, corr: Correspondence, scale: float, object_name: str,
-                   obj_pos: Array, obj_rot: Array,
+def _generic_grasp(robot: Hand, human: HumanHand, corr: Correspondence, scale: float,
+                   object_name: str, obj_pos: Array, obj_rot: Array,
                    press_m: float) -> tuple[Array, Array, HandPose, dict[str, float]]:
-    """Side grasp without a reference: palm facing the object's centre from −x (world),
-    fingers up; the closure level whose mapped fingertips lie, on average, ``press_m`` past
-    the surface (0: closest to it)."""
+    """The searched generic grasp (:func:`teleop.synthetic.grasp_search.search_grasp`) as an
+    operator wrist pose and hand pose; residuals: the mapped tips' signed surface distances
+    per finger and their mean absolute value ``mean_surface_m``."""
     from sim.world.objects import load_object
 
     mesh = load_object(object_name).surface_mesh()
-    lo, hi = mesh.bounds
-    centre_w = obj_pos + obj_rot @ (0.5 * (lo + hi))
-    verts_w = mesh.vertices @ obj_rot.T + obj_pos
-    reach = float(np.max(centre_w[0] - verts_w[:, 0]))
-    # frame_palm: +y (palm normal) toward +x world, +z (fingers) up, x = y × z
-    palm_rot = np.column_stack([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
-    palm_pos = centre_w - np.array([reach + 0.015, 0.0, 0.03])
-    wrist_pos, wrist_rot = corr.wrist_for_palm(palm_pos, palm_rot)
-    best: tuple[float, HandPose] | None = None
-    for s in np.linspace(0.0, 1.0, 21):
-        pose = lerp_pose(HandPose.relaxed(), HandPose.power(), float(s))
-        pos, _ = human.joints_in_wrist(pose)
-        tips_op = pos[[JOINT_INDEX[f"{f}_tip"] for f in FINGERS]]
-        tips_palm = corr.p_pw + scale * tips_op @ corr.r_pw.T
-        tips_o = (palm_pos + tips_palm @ palm_rot.T - obj_pos) @ obj_rot
-        cost = float(np.mean(np.abs(surface_distance_m(mesh, tips_o) + press_m)))
-        if best is None or cost < best[0]:
-            best = (cost, pose)
-    assert best is not None
-    logger.info("generic grasp on %s: mean mapped fingertip distance %.4f m", object_name,
-                best[0])
-    return wrist_pos, wrist_rot, best[1], {"mean_surface_m": best[0]}
+    found = search_grasp(robot, human, corr, scale, mesh, obj_pos, obj_rot, press_m)
+    wrist_pos, wrist_rot = corr.wrist_for_palm(found.palm_pos_m, found.palm_rot)
+    pose = found.pose
+    _fill_unmapped(pose, corr.mapping.fingers.values())
+    residual = {**found.surface_m,
+                "mean_surface_m": float(np.mean(np.abs(list(found.surface_m.values()))))}
+    logger.info("generic grasp on %s: fingertips touching %s (cost %.4f)", object_name,
+                found.touching, found.cost)
+    return wrist_pos, wrist_rot, pose, residual
