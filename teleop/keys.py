@@ -32,7 +32,7 @@ import zenoh
 
 PREFIX = "dexaug"
 CONTROL_COMMANDS: tuple[str, ...] = ("start_recording", "stop_recording", "choose_object",
-                                     "reset_object", "mark_grasp", "status")
+                                     "reset_object", "set_object_mode", "mark_grasp", "status")
 
 
 class KeyError_(ValueError):

@@ -237,6 +237,10 @@ def _rerecord_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("out", type=Path, help="the full session to write")
     p.add_argument("--hand", help="hand config (default: the session's)")
     p.add_argument("--object", help="object (default: the session's)")
+    p.add_argument("--object-mode", choices=("demo", "free"),
+                   help="demo: the object settles on the table and is held while the hand "
+                   "grasps; free: it can be lifted (default: the session's; free for a session "
+                   "that records none)")
 
 
 @command("rerecord", _rerecord_args)
@@ -249,7 +253,8 @@ def rerecord_cmd(args: argparse.Namespace, console: Console) -> int:
     """
     from teleop.bridge.rerecord import rerecord
 
-    out = rerecord(args.src, args.out, hand=args.hand, object_name=args.object)
+    out = rerecord(args.src, args.out, hand=args.hand, object_name=args.object,
+                   object_mode=args.object_mode)
     console.print(f"wrote {out}")
     return 0
 

@@ -54,7 +54,7 @@ logger = logging.getLogger(__name__)
 Array = np.ndarray
 
 #: the bridge's control commands: the rig's common ones and the object mode switch
-COMMANDS: tuple[str, ...] = (*zkeys.CONTROL_COMMANDS, "set_object_mode")
+COMMANDS: tuple[str, ...] = zkeys.CONTROL_COMMANDS
 
 
 class _Pending:
