@@ -29,7 +29,10 @@ REFERENCE = REPO_ROOT.parent / "shared" / "reference" / "dexgraspbench" / "grasp
 
 def real_mass_config(folder: Path) -> Path:
     """A copy of validate.toml whose dgb object mass is the object's own."""
-    text = VALIDATE_TOML.read_text().replace("object_mass_kg = 0.1 ", 'object_mass_kg = "real" ')
+    original = VALIDATE_TOML.read_text()
+    text = original.replace("object_mass_kg = 0.1 ", 'object_mass_kg = "real" ', 1)
+    if text == original:
+        raise SystemExit(f"{VALIDATE_TOML}: no 'object_mass_kg = 0.1' line to switch to the real mass")
     path = folder / "validate_real_mass.toml"
     path.write_text(text)
     return path

@@ -44,7 +44,7 @@ from sim.transforms import pose_inv, pose_mul, rotate
 from sim.validate.config import ValidateConfig
 from sim.validate.validator import Validator
 from sim.world.objects import load_object
-from sim.world.scene import HAND_PREFIX, OBJECT_HOME, Scene
+from sim.world.scene import HAND_PREFIX, Scene
 
 __all__ = ["DEFAULT_TOLERANCE_M", "FAR_M", "IMPORTED_DEMOS_DIR", "ImportedDemo", "describe",
            "import_demos", "write_imported"]
@@ -56,7 +56,6 @@ DEFAULT_TOLERANCE_M = 0.003
 FAR_M = 0.05
 #: where imported demonstrations go by default, and where ``dexaug bench paper`` looks first
 IMPORTED_DEMOS_DIR = REPO_ROOT / "recordings" / "demos" / "human"
-_IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
 
 
 @dataclass(frozen=True)
@@ -195,11 +194,7 @@ def _placed(validator: Validator, grasp: Grasp) -> Scene:
     """The validator's lift-drop scene with ``grasp`` placed as the validator places it
     (object at home, frame_palm at :meth:`Validator.palm_world`), kinematics only."""
     scene = validator.scene("lift-drop")
-    mujoco.mj_resetData(scene.model, scene.data)
-    scene.set_object_pose(OBJECT_HOME, _IDENTITY)
-    scene.set_palm_pose(*Validator.palm_world(grasp), grasp.joints)
-    scene.set_hand_joints(grasp.joints)
-    mujoco.mj_forward(scene.model, scene.data)
+    scene.reset_with_grasp(*Validator.palm_world(grasp), grasp.joints)
     return scene
 
 

@@ -31,13 +31,12 @@ from sim.validate.config import DgbParams
 from sim.validate.result import Failure, PhaseResult, ValidationResult
 from sim.validate.stages import GraspStages
 from sim.world.contacts import contacts_between
-from sim.world.scene import OBJECT_HOME, Scene
+from sim.world.scene import Scene
 
 __all__ = ["DGB_DIRECTIONS", "dgb_drift", "dgb_penetration_m", "run_dgb"]
 
 DGB_DIRECTIONS = {"-x": (-1, 0, 0), "+x": (1, 0, 0), "-y": (0, -1, 0), "+y": (0, 1, 0),
                   "-z": (0, 0, -1), "+z": (0, 0, 1)}
-_IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
 
 
 def dgb_drift(pos0: np.ndarray, quat0: np.ndarray, pos: np.ndarray,
@@ -46,18 +45,6 @@ def dgb_drift(pos0: np.ndarray, quat0: np.ndarray, pos: np.ndarray,
     rel = quat_mul(quat, quat_conj(quat0))
     w = float(rel[0]) if abs(rel[0]) <= 1.0 else 1.0
     return float(np.linalg.norm(pos - pos0)), 2.0 * float(np.arccos(w))
-
-
-def _reset(scene: Scene, palm_world: tuple[np.ndarray, np.ndarray], q: np.ndarray) -> None:
-    """Object at home and at rest, hand at the palm pose with joints and controls at ``q``."""
-    m, d = scene.model, scene.data
-    mujoco.mj_resetData(m, d)
-    m.opt.gravity[:] = 0.0
-    scene.set_object_pose(OBJECT_HOME, _IDENTITY)
-    scene.set_palm_pose(*palm_world, q)
-    scene.set_hand_joints(q)
-    scene.set_hand_ctrl(q)
-    mujoco.mj_forward(m, d)
 
 
 def dgb_penetration_m(scene: Scene) -> tuple[float, float]:
@@ -86,7 +73,7 @@ def run_dgb(scene: Scene, p: DgbParams, palm_world: tuple[np.ndarray, np.ndarray
     last measured drift, the verdict). ``after_first_close`` is called once, closed, before the
     first push (to measure contacts)."""
     m, d = scene.model, scene.data
-    _reset(scene, palm_world, stages.pregrasp)
+    scene.reset_with_grasp(*palm_world, stages.pregrasp)
     ho, hh = dgb_penetration_m(scene)
     result.penetration_m = ho
     if ho > p.max_penetration_m or hh > p.max_penetration_m:
@@ -97,7 +84,7 @@ def run_dgb(scene: Scene, p: DgbParams, palm_world: tuple[np.ndarray, np.ndarray
     checks = max(round(p.push_time_s / m.opt.timestep) // p.check_every_steps, 1)
     ok, disp, rot = True, 0.0, 0.0
     for i, (name, direction) in enumerate(DGB_DIRECTIONS.items()):
-        _reset(scene, palm_world, stages.pregrasp)
+        scene.reset_with_grasp(*palm_world, stages.pregrasp)
         _stage(scene, p, stages.pregrasp, stages.grasp)
         _stage(scene, p, stages.grasp, stages.squeeze)
         if i == 0 and after_first_close is not None:

@@ -80,9 +80,10 @@ def fragment_flag(hand: Hand, q: np.ndarray, touching: Sequence[str]) -> str | N
         if f.name in touching:
             continue
         idx = hand.finger_qadr[f.name]
-        lo, hi = hand.lower[idx], hand.upper[idx]
-        span = np.where(np.isfinite(hi - lo) & (hi - lo > 1e-6), hi - lo, np.inf)
-        if float(np.mean(np.clip((q[idx] - np.maximum(lo, 0.0)) / span, 0.0, 1.0))) >= FRAGMENT_CLOSURE:
+        # open is 0 (or the lower limit when that is above 0), closed the upper limit
+        lo, hi = np.maximum(hand.lower[idx], 0.0), hand.upper[idx]
+        span = np.where(np.isfinite(hi) & (hi - lo > 1e-6), hi - lo, np.inf)
+        if float(np.mean(np.clip((q[idx] - lo) / span, 0.0, 1.0))) >= FRAGMENT_CLOSURE:
             closed.append(f.name)
     if len(closed) >= max(len(touching) - 1, 2):
         return (f"fragment: only {', '.join(touching)} touch while {', '.join(closed)} are "
