@@ -1,9 +1,10 @@
 """Augmentation keeps the demonstration's context: its table and its fingers.
 
-The paper authors' own teleoperated dice demonstration (``recordings/demos/human/062_dice.json``,
-imported from ``fsg_keyframes``) was recorded with the object resting on a table. Augmented with
-the defaults, every kept grasp keeps its palm box and contacts above that table and uses only the
-demo's fingers; turning table mode off lets grasps reach below it (so the check can fail)."""
+The paper authors' own teleoperated demonstrations (``recordings/demos/human/``, imported from
+``fsg_keyframes``: sugar box, bowl, dice) were recorded with the object resting on a table.
+Augmented with the defaults (``--n 200``, the default FSG budget), each gives at least 150 grasps,
+and every one keeps its palm box and contacts above that table and uses only the demo's fingers;
+turning table mode off lets grasps reach below it (so the check can fail)."""
 
 from __future__ import annotations
 
@@ -20,7 +21,8 @@ from sim.paths import REPO_ROOT
 from sim.transforms import quat_to_mat
 from tests.conftest import needs_menagerie, needs_ycb
 
-DEMO = REPO_ROOT / "recordings" / "demos" / "human" / "062_dice.json"
+HUMAN = REPO_ROOT / "recordings" / "demos" / "human"
+DEMO = HUMAN / "062_dice.json"
 pytestmark = [needs_menagerie, needs_ycb]
 
 
@@ -31,18 +33,17 @@ def _lowest_elevation_m(hand: Hand, table, palm_pose: np.ndarray, points: np.nda
     return float(min(table.elevation_m(v_obj).min(), table.elevation_m(points).min(initial=np.inf)))
 
 
-@pytest.fixture(scope="module")
-def kept(tmp_path_factory):
-    demo = load_demo(DEMO)
+@pytest.fixture(scope="module", params=["004_sugar_box", "024_bowl", "062_dice"])
+def kept(request, tmp_path_factory):
+    demo = load_demo(HUMAN / f"{request.param}.json")
     out = tmp_path_factory.mktemp("ctx")
-    opts = AugmentOptions(n=30, gallery=0, validate=None, time_budget_s=60.0)
-    summary = augment_demo(demo, out, opts, force=True)
+    summary = augment_demo(demo, out, AugmentOptions(n=200, gallery=0, validate=None), force=True)
     return demo, dataset.load(summary.dataset)[demo.object]
 
 
 def test_a_table_demo_augments_above_its_table_with_its_fingers(kept) -> None:
     demo, table = kept
-    assert demo.table is not None and len(table) >= 20
+    assert demo.table is not None and len(table) >= 150
     hand = Hand.load(demo.hand)
     plane = demo_table(demo, None)
     clearance = 0.0

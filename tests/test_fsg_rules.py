@@ -25,7 +25,7 @@ from augment.fsg.checks import Dedup, eq3_crossing, link_penetrates
 from augment.fsg.matching import FingerIndex, crossing_groups, eq2_removed, match_fingers
 from augment.fsg.params import FsgParams
 from augment.fsg.result import FsgGrasp
-from augment.fsg.run import generate, merge
+from augment.fsg.run import generate, merge, misses_budget
 from augment.object_cloud import ObjectCloud
 from sim.grasp import Grasp
 from sim.transforms import axis_angle_to_mat, mat_to_quat
@@ -216,6 +216,43 @@ def test_reachable_fingers_are_all_used() -> None:
     res = generate(hand, cloud, ws, n=2, seed=0, time_budget_s=10, params=TOY_PARAMS)
     assert res.stopped == "done" and res.finger_sets == [("thumb", "index", "middle")]
     assert all(g.grasp.joints[4:6].tolist() == [0.5, 0.6] for g in res.grasps)
+
+
+# ------------------------------------------------------------------------------ closure relaxation
+
+
+def test_closure_filter_relaxes_when_the_budget_cannot_be_met() -> None:
+    """An unreachable ε floor (``min_epsilon`` = 10) makes every geometrically valid candidate
+    fail the quality step: strict (``relax_closure`` off) gives nothing within the budget; relaxed,
+    the first round's zero rate cannot meet the budget, the filter is relaxed and the grasps come
+    out, each recorded with its ε, all below the floor."""
+    hand, cloud, ws = _toy_hand(), _cube_cloud(), _toy_workspace(middle_reachable=True)
+    floor = dataclasses.replace(TOY_PARAMS, min_epsilon=10.0)
+    strict = generate(hand, cloud, ws, n=3, seed=0, time_budget_s=0.5,
+                      params=dataclasses.replace(floor, relax_closure=False))
+    assert strict.stopped == "time budget" and strict.grasps == [] and strict.stats["epsilon"] > 0
+    assert not strict.closure_relaxed
+    res = generate(hand, cloud, ws, n=3, seed=0, time_budget_s=10, params=floor)
+    assert res.stopped == "done" and len(res.grasps) == 3 and res.closure_relaxed
+    assert res.stats["accepted_open"] == res.stats["accepted"] >= 3
+    assert all(g.epsilon <= 10.0 for g in res.grasps)
+    eps = [g.epsilon for g in res.grasps]
+    assert eps == sorted(eps, reverse=True)
+
+
+def test_a_round_that_meets_the_budget_keeps_the_filter() -> None:
+    """With the default floor the toy cube gives force-closure grasps at a rate that meets the
+    budget: no relaxation, every grasp in force closure."""
+    hand, cloud, ws = _toy_hand(), _cube_cloud(), _toy_workspace(middle_reachable=True)
+    res = generate(hand, cloud, ws, n=6, seed=0, time_budget_s=10, params=TOY_PARAMS)
+    assert res.stopped == "done" and not res.closure_relaxed
+    assert all(g.epsilon > 0 for g in res.grasps) and res.stats["accepted_open"] == 0
+
+
+def test_misses_budget_projects_the_round_rate() -> None:
+    assert misses_budget(10, 0, 1.0, 1e9)           # a round with nothing never catches up
+    assert not misses_budget(10, 5, 1.0, 2.5)       # two more rounds, 2 s < 2.5 s
+    assert misses_budget(10, 5, 1.0, 1.5)
 
 
 # ------------------------------------------------------------------------------ de-duplication

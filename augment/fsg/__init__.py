@@ -28,7 +28,8 @@ the returned types in :mod:`augment.fsg.result`, and one batch is strung togethe
    fingertip buried in the object is rejected.
 6. **Link penetration** (:mod:`augment.fsg.checks`, optional): paper eq. 3 and a clearance on the
    link skeletons, then the caller's exact check in the validator's MuJoCo scene.
-7. **Quality** (:mod:`augment.fsg.checks`): GWS Q1 (ε) and volume; ε ≤ ``min_epsilon`` is dropped.
+7. **Quality** (:mod:`augment.fsg.checks`): GWS Q1 (ε) and volume; ε ≤ ``min_epsilon`` is dropped
+   unless a short round relaxed the filter (:mod:`augment.fsg.run`).
 8. **De-duplication** (:mod:`augment.fsg.checks`): against the accepted grasps (5 mm, |q·q'| >
    1 − 5e-3, every joint within 0.1 rad).
 

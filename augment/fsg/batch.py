@@ -83,8 +83,11 @@ class Sampler:
         self.index = FingerIndex.build(self.clouds, self.params)
         self.stats: dict[str, int] = {k: 0 for k in (
             "candidates", "palm", "table", "no_match", "contacts", "depth", "link", "epsilon",
-            "duplicate", "penetration", "accepted")}
+            "duplicate", "penetration", "accepted", "accepted_open", "relaxed")}
         self.accepted: list[FsgGrasp] = []
+        #: grasps without force closure (ε ≤ ``min_epsilon``) are dropped until
+        #: :func:`augment.fsg.run.run_rounds` relaxes this (``relax_closure``)
+        self.require_closure = True
         self.dedup = Dedup(setup.nq, self.params)
 
     def batch(self, fingers: tuple[str, ...], n_outer: int) -> None:
@@ -127,7 +130,8 @@ class Sampler:
                 continue
             cpts, cnrm = self.points[idx], self.normals[idx]
             m = grasp_quality(cpts, cnrm, s.cloud, p)
-            if not m.epsilon > p.min_epsilon:
+            closure = m.epsilon > p.min_epsilon
+            if not closure and self.require_closure:
                 self.stats["epsilon"] += 1
                 continue
             # palm pose in the object frame: inverse of object → palm
@@ -146,6 +150,7 @@ class Sampler:
                 continue
             self.dedup.add(palm_pos, quat, q)
             self.stats["accepted"] += 1
+            self.stats["accepted_open"] += int(not closure)
             self.accepted.append(FsgGrasp(
                 grasp=grasp, fingers=fingers, contact_points=cpts.copy(),
                 contact_normals=cnrm.copy(), contact_finger=finger_i,

@@ -14,7 +14,7 @@
    collision FSG computes, once per output grasp).
 7. **Quality** (:func:`grasp_quality`): Q1 (ε) and volume via :func:`sim.metrics.gws.gws_metrics`
    (μ, ``n_edges`` cone edges, centre = centre of mass, torque / max radius) on the contacts
-   with inward normals; ε ≤ ``min_epsilon`` is dropped.
+   with inward normals; ε ≤ ``min_epsilon`` is dropped (until relaxed, :mod:`augment.fsg.run`).
 8. **De-duplication** (:class:`Dedup`): palm within ``dedup_pos_m``, ``|q·q'| > 1 −
    dedup_quat`` and every joint within ``dedup_joint_rad`` of an accepted grasp.
 """

@@ -54,6 +54,7 @@ class FsgParams:
     mu: float = 0.5
     n_edges: int = 8
     min_epsilon: float = 0.0
+    relax_closure: bool = True
     min_valid: int = 10
     min_fingers: int = 2
     dedup_pos_m: float = 0.005
@@ -93,7 +94,8 @@ def load_fsg_params(hand: HandConfig, path: Path | str | None = None) -> FsgPara
     kw: dict[str, Any] = dict(geometry)
     for name in set(fields) - set(HAND_FIELDS):
         default = getattr(d, name)
-        kw[name] = (sec.int(name, default) if isinstance(default, int)
+        kw[name] = (sec.bool(name, default) if isinstance(default, bool)
+                    else sec.int(name, default) if isinstance(default, int)
                     else sec.float(name, default))
     try:
         return FsgParams(**kw)

@@ -51,7 +51,8 @@ class FsgResult:
     """Grasps (sorted by ε, best first) plus what happened: ``requested`` vs ``len(grasps)``
     (``shortfall``), ``stopped`` ("done", "time budget"), wall time, and counts summed over
     workers: candidates and where they were rejected (palm, table, no_match, contacts, depth,
-    link, epsilon, duplicate, penetration), accepted, and per finger the k-d tree pairs with
+    link, epsilon, duplicate, penetration), accepted (``accepted_open`` of them without force
+    closure), ``relaxed`` (workers whose closure filter was relaxed), and per finger the k-d tree pairs with
     opposed normals (``pairs_<finger>``) and those left after eq. 2 and the crossing rule
     (``usable_<finger>``). ``finger_sets`` lists the finger sets finger iteration went through."""
 
@@ -61,6 +62,11 @@ class FsgResult:
     elapsed_s: float
     stats: dict[str, int] = field(default_factory=dict)
     finger_sets: list[tuple[str, ...]] = field(default_factory=list)
+
+    @property
+    def closure_relaxed(self) -> bool:
+        """Whether any worker relaxed the force-closure filter (:mod:`augment.fsg.run`)."""
+        return self.stats.get("relaxed", 0) > 0
 
     @property
     def shortfall(self) -> int:

@@ -138,7 +138,10 @@ def augment_demo(demo: Demo, out_root: Path | str, opts: AugmentOptions | None =
     kept = table
     sim_eps = np.asarray(kept["sim_epsilon"], float)
     closed = sim_eps[np.isfinite(sim_eps) & (sim_eps > 0)]
-    metrics = {"fsg_epsilon_mean": _mean(kept["gws"]), "fsg_volume_mean": _mean(kept["volume"]),
+    gws = np.asarray(kept["gws"], float)
+    metrics = {"fsg_force_closure_pct": 100.0 * float((gws > 0).sum()) / len(kept) if len(kept) else 0.0,
+               "fsg_epsilon_mean_closed": _mean(gws[gws > 0]),
+               "fsg_volume_mean": _mean(kept["volume"]),
                "sim_force_closure_pct": 100.0 * len(closed) / len(kept) if len(kept) else 0.0,
                "sim_epsilon_mean_closed": _mean(closed),
                "displacement_mm_mean": 1e3 * _mean(kept["displacement_m"])}
