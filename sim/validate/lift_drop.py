@@ -10,6 +10,8 @@ seconds, radians.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import mujoco
 import numpy as np
 
@@ -22,13 +24,18 @@ from sim.validate.targets import GraspTargets
 from sim.world.contacts import contacts_between
 from sim.world.scene import Scene
 
-__all__ = ["run_lift_drop"]
+__all__ = ["Observer", "run_lift_drop"]
+
+#: called with the phase name ("lift", "hold") after every chunk of steps, for diagnosis
+Observer = Callable[[str], None]
 
 
 def run_lift_drop(scene: Scene, hand: Hand, p: LiftDropParams, targets: GraspTargets,
-                  result: ValidationResult) -> None:
+                  result: ValidationResult, observe: Observer | None = None) -> None:
     """Run lift, hold and drop on the closed grasp in ``scene``; fills ``result`` (phases
-    ``lift``, ``hold``, ``drop``, the worst drift, the verdict)."""
+    ``lift``, ``hold``, ``drop``, the worst drift, the verdict). ``observe`` sees the scene after
+    every lift chunk (1/50 of the lift) and every hold chunk of the same length; stepping in
+    chunks changes nothing (MuJoCo steps the same either way)."""
     m, d = scene.model, scene.data
     ref_pos, ref_quat = relative_object_pose(scene)
     start = d.mocap_pos[scene.mocap_id].copy()
@@ -40,13 +47,19 @@ def run_lift_drop(scene: Scene, hand: Hand, p: LiftDropParams, targets: GraspTar
         rise = p.lift_height_m * min(k + chunk, lift_steps) / lift_steps
         d.mocap_pos[scene.mocap_id] = start + np.array([0.0, 0.0, rise])
         mujoco.mj_step(m, d, nstep=min(chunk, lift_steps - k))
+        if observe is not None:
+            observe("lift")
         disp, rot = drift(scene, ref_pos, ref_quat)
         if disp > p.max_displacement_m or rot > p.max_rotation_rad:
             ok = False
             break
     result.phases["lift"] = PhaseResult(ok, disp, rot)
     if ok:
-        run_for(scene, p.hold_time_s)
+        hold_steps = max(round(p.hold_time_s / m.opt.timestep), 0)
+        for k in range(0, hold_steps, chunk):
+            mujoco.mj_step(m, d, nstep=min(chunk, hold_steps - k))
+            if observe is not None:
+                observe("hold")
         disp, rot = drift(scene, ref_pos, ref_quat)
         ok = bool(disp <= p.max_displacement_m and rot <= p.max_rotation_rad)
         result.phases["hold"] = PhaseResult(ok, disp, rot)

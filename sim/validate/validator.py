@@ -28,7 +28,7 @@ from sim.metrics.gws import gws_metrics
 from sim.transforms import pose_inv, pose_mul, rotate
 from sim.validate.config import PROTOCOLS, ValidateConfig
 from sim.validate.dgb import run_dgb
-from sim.validate.lift_drop import run_lift_drop
+from sim.validate.lift_drop import Observer, run_lift_drop
 from sim.validate.result import Failure, ValidationResult
 from sim.validate.six_dir import run_six_dir
 from sim.validate.stages import GraspStages, grasp_stages
@@ -179,9 +179,12 @@ class Validator:
         return self._hand_object_contacts(scene).max_penetration_m
 
     def validate(self, grasp: Grasp, protocol: str = "lift-drop", *,
-                 squeeze_convention: str | None = None) -> ValidationResult:
+                 squeeze_convention: str | None = None,
+                 observe: Observer | None = None) -> ValidationResult:
         """Validate one grasp; see the module docstring and DESIGN §5 for the protocols.
-        ``squeeze_convention`` (dgb only) overrides ``[dgb] squeeze_convention``."""
+        ``squeeze_convention`` (dgb only) overrides ``[dgb] squeeze_convention``; ``observe``
+        (lift-drop only, for :mod:`sim.validate.diagnose`) is called with "closed" once the
+        fingers have closed and settled, then through the lift and hold."""
         if protocol == "dgb":
             return self._validate_dgb(grasp, squeeze_convention)
         penetration = self.penetration_m(grasp, protocol)
@@ -205,7 +208,9 @@ class Validator:
             result.failure = Failure.LOST_CONTACT
             return result
         if protocol == "lift-drop":
-            run_lift_drop(scene, self.hand, self.config.lift_drop, targets, result)
+            if observe is not None:
+                observe("closed")
+            run_lift_drop(scene, self.hand, self.config.lift_drop, targets, result, observe)
         else:
             run_six_dir(scene, self.config.six_dir, result)
         return result
