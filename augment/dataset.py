@@ -22,8 +22,11 @@ Layout (one group per object, with the reference implementation's column names `
     why), so the main table holds only usable grasps when the writer splits them.
 
 Files are written whole through :func:`sim.io.atomic_path` (temp file + rename): a failed or
-interrupted write leaves the previous file untouched. :func:`append` reads the existing file,
-concatenates and rewrites atomically (datasets are small: thousands of grasps per object).
+interrupted write leaves the previous file untouched, and the temp file of a writer that was
+killed is removed by the next write of the same file (:func:`sim.io.sweep_stale_temps`).
+:func:`append` reads the existing file, concatenates and rewrites atomically (datasets are
+small: thousands of grasps per object). A file that cannot be read (missing, cut short, not
+this layout) raises :class:`DatasetError` naming it, never an h5py traceback.
 """
 
 from __future__ import annotations
@@ -38,9 +41,10 @@ from typing import Any
 import h5py
 import numpy as np
 
+from sim.errors import DexaugError
 from sim.io import atomic_path
 
-__all__ = ["COLUMNS", "ObjectTable", "append", "from_fsg", "load", "save"]
+__all__ = ["COLUMNS", "DatasetError", "ObjectTable", "append", "from_fsg", "load", "save"]
 
 log = logging.getLogger(__name__)
 
@@ -54,6 +58,10 @@ COLUMNS: dict[str, Any] = {
 }
 _STR_COLUMNS = ("failure", "demo_id", "stages_made_by", "closing")
 _STR = h5py.string_dtype()
+
+
+class DatasetError(DexaugError):
+    """A grasp dataset cannot be read: missing, not HDF5, cut short, or not this layout."""
 
 
 @dataclass
@@ -221,9 +229,13 @@ def save(path: Path | str, tables: Mapping[str, ObjectTable],
 
 
 def load(path: Path | str) -> dict[str, ObjectTable]:
-    """Read a dataset: object name → :class:`ObjectTable` (NumPy arrays)."""
-    with h5py.File(path, "r") as f:
-        return {name: _read_group(g) for name, g in f.items() if isinstance(g, h5py.Group)}
+    """Read a dataset: object name → :class:`ObjectTable` (NumPy arrays). Raises
+    :class:`DatasetError` when the file cannot be read as one."""
+    try:
+        with h5py.File(path, "r") as f:
+            return {name: _read_group(g) for name, g in f.items() if isinstance(g, h5py.Group)}
+    except (OSError, KeyError) as exc:  # h5py: unreadable file; KeyError: a missing column/attr
+        raise DatasetError(f"{path}: not a readable grasp dataset: {exc}") from None
 
 
 def append(path: Path | str, tables: Mapping[str, ObjectTable]) -> None:
@@ -233,7 +245,7 @@ def append(path: Path | str, tables: Mapping[str, ObjectTable]) -> None:
     existing = load(path) if path.is_file() else {}
     file_attrs: dict[str, Any] = {}
     if path.is_file():
-        with h5py.File(path, "r") as f:
+        with h5py.File(path, "r") as f:   # load() just read it: an error here is a race
             file_attrs = {k: v for k, v in f.attrs.items() if k != "format"}
     for name, t in tables.items():
         existing[name] = _concat(existing[name], t) if name in existing else t

@@ -66,7 +66,7 @@ def main() -> None:
     rig, zport = "benchweb", keys.free_tcp_port()
     ingest = WebIngest(rig, WebIngestConfig(host="127.0.0.1", port=0, dev_static={
         "iwer": iwer_build_dir(), "capture": CAPTURE_DIR}), listen_port=zport)
-    url = ingest.start()
+    ingest.start()
     proc = None
     if not args.no_bridge:
         ctx = mp.get_context("spawn")
@@ -89,8 +89,8 @@ def main() -> None:
     with sync_playwright() as pw:
         browser = pw.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
         page = browser.new_context(ignore_https_errors=True).new_page()
-        page.goto(f"{url}?emulate=quest3&capture=/dev/capture/cap.min.js"
-                  f"&from={args.from_frame}&to={args.to_frame}")
+        page.goto(ingest.page_url(emulate="quest3", capture="/dev/capture/cap.min.js",
+                                  **{"from": str(args.from_frame), "to": str(args.to_frame)}))
         page.wait_for_function("() => window.dexaug.stats.connects >= 1 && "
                                "!document.getElementById('enter').disabled", timeout=30_000)
         page.click("#enter")

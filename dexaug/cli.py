@@ -1,7 +1,12 @@
 """``dexaug``: one command with subcommands for every stage of the pipeline.
 
-Libraries never print; this module turns their results into tables and progress bars, and turns
-dexaug's own errors into one clear line (exit status 2) instead of a traceback.
+Libraries never print; this module turns their results into tables and progress bars, and every
+error into one line on stderr, never a traceback: a mistyped option is refused while the command
+line is parsed (argparse, exit status 2, before anything is loaded), dexaug's own errors
+(:class:`~sim.errors.DexaugError`) exit with status 2, a failing file or socket operation
+(``OSError``) and anything unforeseen with status 1 (``-v`` adds the traceback to the log), and
+Ctrl-C with 130. Messages are printed as plain text: a path or name holding ``[x]`` is shown as
+it is, not read as rich markup.
 """
 
 from __future__ import annotations
@@ -12,57 +17,125 @@ import logging
 import signal
 import sys
 import threading
+from typing import NoReturn
 
 from rich.console import Console
+from rich.text import Text
 
 from dexaug.commands.registry import COMMANDS
+from dexaug.commands.workers import stop_workers
 from sim.errors import DexaugError
+
+log = logging.getLogger("dexaug")
+
+#: the packages whose INFO log a command shows (without ``-v``)
+OWN_PACKAGES = ("dexaug", "sim", "augment", "teleop")
 
 #: the command modules, in the order ``dexaug --help`` lists their subcommands (the data flow:
 #: assets and validation, the demo, capture, augmentation, the dashboard)
 COMMAND_MODULES = tuple(f"dexaug.commands.{m}" for m in (
-    "assets", "validate", "demo", "workspace", "teleop", "augment", "stream", "ui"))
+    "assets", "validate", "demo", "workspace", "teleop", "repair", "augment", "diagnose", "stream",
+    "ui"))
 
 
-def build_parser() -> argparse.ArgumentParser:
+def one_line(text: str) -> str:
+    """``text`` with every run of whitespace (newlines included) as one space."""
+    return " ".join(text.split())
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line (``dexaug generate: error: argument --n:
+    expected a whole number >= 1, got 0``) instead of the usage block and the message."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {one_line(message)} (see {self.prog} --help)\n")
+
+
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The parser of every subcommand; with ``only`` (a subcommand name), the arguments of that
+    one alone are set up and the others are listed by name and summary: setting up arguments
+    imports the configs their defaults and choices come from (a second for all of them), which
+    a mistyped option should not wait for."""
     for module in COMMAND_MODULES:   # importing a command module registers its subcommands
         importlib.import_module(module)
 
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="dexaug", description="Teleoperation-to-dataset system for dexterous robot hands: "
         "capture and replay demonstrations, augment them into many grasps (AutoWS + FSG), and "
         "validate every grasp in MuJoCo.")
-    parser.add_argument("-v", "--verbose", action="store_true", help="debug logging")
+    parser.add_argument("-v", "--verbose", action="store_true", help="debug logging (and the "
+                        "traceback of an unforeseen error)")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name, (setup, fn) in COMMANDS.items():
         doc = (fn.__doc__ or "").strip()
         p = sub.add_parser(name, help=doc.splitlines()[0] if doc else None, description=doc,
                            formatter_class=argparse.RawDescriptionHelpFormatter)
-        setup(p)
+        if only in (None, name):
+            setup(p)
         p.set_defaults(handler=fn)
     return parser
 
 
+def _command_name(argv: list[str]) -> str | None:
+    """The subcommand named in ``argv``: the first word that is not an option (``dexaug`` has
+    only flag options of its own), or None."""
+    return next((a for a in argv if not a.startswith("-")), None)
+
+
 def _exit_on_sigterm() -> None:
     """SIGTERM (a service manager, ``kill``) ends the command like Ctrl-C: the interpreter exits
-    normally, so recordings are closed and worker pools shut down instead of being cut off."""
+    normally, so recordings are closed, instead of being cut off."""
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    _exit_on_sigterm()
-    console = Console(width=None if sys.stdout.isatty() else 160)
-    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO,
+def _configure_logging(verbose: bool) -> None:
+    """dexaug's own log at INFO (DEBUG with ``-v``); other libraries' only from WARNING up
+    unless ``-v`` (their INFO lines, e.g. PyOpenGL's "No OpenGL_accelerate module loaded",
+    say nothing to a user and would bury a command's one-line error). Logging configured by
+    the program that calls :func:`main` (a test runner) is left as it is."""
+    if logging.getLogger().handlers:
+        return
+    logging.basicConfig(level=logging.DEBUG if verbose else logging.WARNING,
                         format="%(levelname)s %(name)s: %(message)s")
+    if not verbose:
+        for package in OWN_PACKAGES:
+            logging.getLogger(package).setLevel(logging.INFO)
+
+
+def print_error(message: str) -> None:
+    """``error: MESSAGE`` as one line on stderr, the message as plain text (no markup)."""
+    text = Text("error: ", style="bold red")
+    text.append(one_line(message))
+    Console(stderr=True, soft_wrap=True, highlight=False).print(text)
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    args = build_parser(only=_command_name(argv)).parse_args(argv)
+    _exit_on_sigterm()
+    # markup off: paths, names and messages print as they are; styled output uses rich Text
+    console = Console(width=None if sys.stdout.isatty() else 160, markup=False)
+    _configure_logging(args.verbose)
     try:
         return args.handler(args, console)
     except DexaugError as exc:
-        Console(stderr=True).print(f"[bold red]error:[/] {exc}", highlight=False)
+        print_error(str(exc))
         return 2
+    except OSError as exc:    # a file or socket operation failed: the message names it
+        print_error(str(exc))
+        return 1
     except KeyboardInterrupt:
+        stop_workers()        # their running tasks would hold the exit until their budget ends
         return 130
+    except SystemExit:        # SIGTERM (see _exit_on_sigterm)
+        stop_workers()
+        raise
+    except Exception as exc:  # unforeseen: still one line for the user, the traceback with -v
+        log.debug("traceback of the error below", exc_info=True)
+        print_error(f"{type(exc).__name__}: {exc}"
+                    + ("" if args.verbose else " (run with -v for the traceback)"))
+        return 1
 
 
 if __name__ == "__main__":

@@ -21,3 +21,13 @@ class ConfigError(DexaugError):
 
 class GraspInputError(DexaugError):
     """A grasp given to the validator has the wrong shape or non-finite values."""
+
+
+class UsageError(DexaugError):
+    """A command line asks for something argparse cannot refuse alone: a combination of
+    options, or an input with nothing in it for the command to do."""
+
+
+class NetworkError(DexaugError):
+    """A port cannot be listened on (taken by another process, not allowed) or a network
+    service cannot start."""

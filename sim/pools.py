@@ -23,7 +23,7 @@ from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import get_context
 
-__all__ = ["persistent_pool"]
+__all__ = ["persistent_pool", "stop_pools"]
 
 _POOLS: dict[int, ProcessPoolExecutor] = {}
 #: seconds between a worker's checks that its owner is alive
@@ -65,3 +65,17 @@ def persistent_pool(workers: int, preload: Sequence[str] = ()) -> ProcessPoolExe
                                                  initargs=(os.getpid(),))
         atexit.register(pool.shutdown, cancel_futures=True)
     return pool
+
+
+def stop_pools() -> int:
+    """Terminate every pool's workers now (SIGTERM), without waiting for their running tasks,
+    and shut the pools down, waiting for their manager threads (which find the workers gone and
+    fail their futures within a second); for the end of an interrupted command. Returns how
+    many worker processes were terminated."""
+    procs = [p for pool in _POOLS.values() for p in list(getattr(pool, "_processes", {}).values())]
+    for proc in procs:
+        proc.terminate()
+    for pool in list(_POOLS.values()):
+        pool.shutdown(wait=True, cancel_futures=True)
+    _POOLS.clear()
+    return len(procs)

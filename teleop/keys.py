@@ -16,7 +16,9 @@ key                            kind        payload
 =============================  ==========  =================================================
 
 Control commands: ``start_recording``, ``stop_recording``, ``choose_object``,
-``reset_object``, ``mark_grasp``, ``status`` (see :mod:`teleop.bridge.bridge`).
+``reset_object``, ``set_object_mode``, ``mark_grasp``, ``status`` (see
+:mod:`teleop.bridge.control`). A query is untrusted: it names a recording (``name``) or a
+catalogue object, never a file path (:func:`teleop.bridge.control.remote_args`).
 
 Tests and the CLI open peers on loopback with multicast scouting **off** (:func:`open_session`):
 scouting would let concurrent test runs on one machine discover and talk to each other.

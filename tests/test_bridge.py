@@ -71,7 +71,8 @@ def _robot_pinch(hand, q: np.ndarray) -> np.ndarray:
 
 
 def _record(rig: _Rig, path, play) -> None:
-    assert rig.query("start_recording", {"path": str(path), "overwrite": True})["ok"]
+    # a path is for in-process callers only (a remote caller names a file in recordings_dir)
+    assert rig.bridge.control("start_recording", {"path": str(path), "overwrite": True})["ok"]
     n = play()
     assert rig.bridge.wait_idle(received=n)
     assert rig.query("mark_grasp")["ok"]

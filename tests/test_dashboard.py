@@ -115,7 +115,8 @@ def _get(url: str) -> tuple[int, Any]:
 
 
 def _post(url: str, body: bytes) -> tuple[int, Any]:
-    req = urllib.request.Request(url, body, {"Content-Type": "application/json"})
+    # the custom header the page sends: the dashboard refuses a POST without it (CSRF)
+    req = urllib.request.Request(url, body, {"Content-Type": "application/json", "X-Dexaug": "1"})
     try:
         with urllib.request.urlopen(req, timeout=30) as r:
             return r.status, json.loads(r.read())

@@ -94,7 +94,7 @@ def _record_push(operator, mode: str, path: Path) -> dict:
             bridge.start()
             control = keys.RigKeys("dm").control_cmd
             status = keys.query_json(client, control("status"))
-            assert keys.query_json(client, control("start_recording"), {"path": str(path)})["ok"]
+            assert bridge.control("start_recording", {"path": str(path)})["ok"]
             pub = hands_publisher(client, "dm", 5.0)
             frames = _sweep(operator[1])
             assert play(pub, [(0.0, encode(f)) for f in frames], "max") == len(frames)

@@ -100,8 +100,8 @@ def test_quest3_replay_reaches_the_bridge_and_the_view_comes_back(chromium, capt
     console: list[str] = []
     page = new_page(chromium, console=console)
     try:
-        page.goto(f"{ingest.url}?emulate=quest3&capture=/dev/capture/cap.min.js"
-                  f"&from={FIRST}&to={LAST}")
+        page.goto(ingest.page_url(emulate="quest3", capture="/dev/capture/cap.min.js",
+                                  **{"from": str(FIRST), "to": str(LAST)}))
         _wait(page, "window.dexaug.stats.connects >= 1 && !document.getElementById('enter')"
               ".disabled", 30, "page never connected / offered VR")
         page.click("#enter")
@@ -212,7 +212,7 @@ def test_a_browser_without_hand_tracking_says_so(chromium, caplog):
     ingest, _ = _ingest("webnohands")
     page = new_page(chromium)
     try:
-        page.goto(f"{ingest.url}?emulate=quest3-nohands")
+        page.goto(ingest.page_url(emulate="quest3-nohands"))
         _wait(page, "window.dexaug.stats.connects >= 1 && !document.getElementById('enter')"
               ".disabled", 30, "page never connected")
         page.click("#enter")
@@ -256,7 +256,7 @@ def test_a_lost_websocket_shows_reconnecting_and_recovers(chromium, caplog):
     port = ingest.port
     page = new_page(chromium)
     try:
-        page.goto(f"{ingest.url}?emulate=quest3")
+        page.goto(ingest.page_url(emulate="quest3"))
         _wait(page, "window.dexaug.stats.connects >= 1", 20, "page not connected")
         ingest.close()  # the bridge side goes away
         _wait(page, "document.getElementById('message').textContent.includes('Disconnected, "

@@ -6,6 +6,7 @@ import argparse
 
 from rich.console import Console
 from rich.table import Table
+from rich.text import Text
 
 from dexaug.commands.registry import command
 
@@ -36,9 +37,9 @@ def assets(args: argparse.Namespace, console: Console) -> int:
         try:
             hand = Hand.load(name)
             hands.add_row(name, str(hand.nq), str(hand.model.nu), ", ".join(hand.finger_names),
-                          "[green]ok")
+                          Text("ok", style="green"))
         except DexaugError as exc:
-            hands.add_row(name, "", "", "", f"[red]{exc}")
+            hands.add_row(name, "", "", "", Text(str(exc), style="red"))
     console.print(hands)
     objects = Table(title="objects")
     for col in ("object", "source", "mass (kg)", "status"):
@@ -47,9 +48,9 @@ def assets(args: argparse.Namespace, console: Console) -> int:
     for s in statuses:
         if args.broken and s.ok:
             continue
-        state = "[green]ok" if s.ok else f"[red]broken: {s.problem}"
+        state = Text("ok", style="green") if s.ok else Text(f"broken: {s.problem}", style="red")
         if s.ok and s.warnings:
-            state = f"[yellow]ok ({'; '.join(s.warnings)})"
+            state = Text(f"ok ({'; '.join(s.warnings)})", style="yellow")
         objects.add_row(s.name, s.source, f"{s.mass_kg:.3f}" if s.mass_kg else "", state)
     console.print(objects)
     broken = sum(not s.ok for s in statuses)

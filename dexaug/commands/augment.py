@@ -21,8 +21,11 @@ from rich.table import Table
 if TYPE_CHECKING:
     from dexaug.pipeline.summary import DemoSummary
 
-from dexaug.commands.options import augment_options, generation_args, hand_arg
+from dexaug.commands.argtypes import count, int_at_least, positive
+from dexaug.commands.options import augment_options, budget_arg, generation_args, hand_arg, workers_arg
 from dexaug.commands.registry import command
+from dexaug.commands.workers import stop_workers
+from sim.errors import UsageError
 
 log = logging.getLogger(__name__)
 
@@ -49,7 +52,8 @@ def _generate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--object", required=True, help="object name (YCB id/name or primitive)")
     p.add_argument("--demo", help="centre the workspace on a demonstration: a demo .json, a "
                    "session .mcap, or a reference grasp name")
-    p.add_argument("--fingers", type=int, help="use at most this many fingers (priority order)")
+    p.add_argument("--fingers", type=int_at_least(2),
+                   help="use at most this many fingers (priority order; FSG needs 2)")
     p.add_argument("--no-aff", action="store_true", help="sample the whole object cloud, not "
                    "its graspable part (the paper's plain FSG)")
     p.add_argument("--out", type=Path, default=Path("grasps.h5"), help="HDF5 dataset to write "
@@ -82,11 +86,11 @@ def generate_cmd(args: argparse.Namespace, console: Console) -> int:
     workers = args.workers or default_workers()
     demo = resolve_demo(args.demo, hand.name) if args.demo else None
     if demo is not None and demo.object != obj.name:
-        console.print(f"[yellow]note: demo {demo.id} grasps {demo.object}, generating for "
-                      f"{obj.name}")
+        console.print(f"note: demo {demo.id} grasps {demo.object}, generating for {obj.name}",
+                      style="yellow")
     ws = build_workspace(hand, demo=DemoSeed.from_demo(demo) if demo else None)
     with progress_bars(console) as bar:
-        task = bar.add_task(f"FSG {obj.name}", total=args.n)
+        task = bar.add_task(escape(f"FSG {obj.name}"), total=args.n)
         res = generate_grasps(hand, object_cloud(obj), ws, n=args.n, fingers=args.fingers,
                        finger_names=demo_fingers(demo) if demo else None,
                        table=demo_table(demo, args.table), use_affordance=not args.no_aff,
@@ -113,8 +117,9 @@ def generate_cmd(args: argparse.Namespace, console: Console) -> int:
                   f"({per:.3f} s/grasp, stopped: {res.stopped}; finger sets "
                   f"{[len(s) for s in res.finger_sets]})")
     if res.shortfall:
-        console.print(f"[yellow]shortfall: {res.shortfall} grasps ({res.stopped}); rejections "
-                      f"{ {k: v for k, v in res.stats.items() if not k.startswith(('pairs', 'usable'))} }")
+        console.print(f"shortfall: {res.shortfall} grasps ({res.stopped}); rejections "
+                      f"{ {k: v for k, v in res.stats.items() if not k.startswith(('pairs', 'usable'))} }",
+                      style="yellow")
     if results is not None:
         console.print(f"{args.validate}: {len(table)} of {len(results)} passed")
     console.print(f"wrote {args.out}")
@@ -128,9 +133,10 @@ def _augment_args(p: argparse.ArgumentParser) -> None:
                    help="output folder: one sub-folder per demo (default ./datasets)")
     p.add_argument("--watch", type=Path, metavar="DIR", help="keep watching DIR and augment "
                    "each new session once its recorder has closed it")
-    p.add_argument("--poll", type=float, default=2.0, help="--watch: seconds between scans")
+    p.add_argument("--poll", type=positive, default=2.0, help="--watch: seconds between scans")
     p.add_argument("--force", action="store_true", help="redo demos that are already finished")
-    p.add_argument("--gallery", type=int, default=6, help="grasps rendered in each report")
+    p.add_argument("--gallery", type=int_at_least(0), default=6,
+                   help="grasps rendered in each report (0: no report)")
     generation_args(p)
 
 
@@ -150,8 +156,7 @@ def augment_cmd(args: argparse.Namespace, console: Console) -> int:
     from sim.errors import DexaugError
 
     if not args.inputs and not args.watch:
-        console.print("[red]error:[/] give sessions to augment or --watch DIR")
-        return 2
+        raise UsageError("give sessions to augment or --watch DIR")
     opts = augment_options(args)
     failed = 0
     rows = []
@@ -169,7 +174,7 @@ def augment_cmd(args: argparse.Namespace, console: Console) -> int:
             except (DemoError, DexaugError) as exc:
                 failed += 1
                 text = str(exc) if str(path) in str(exc) else f"{path}: {exc}"
-                console.print(f"[red]{escape(text)}", highlight=False)
+                console.print(text, style="red", highlight=False)
                 return
             for s in summaries:
                 rows.append(s)
@@ -214,6 +219,7 @@ def _watch(folder: Path, poll_s: float, handle: Callable[[Path], None],
                 handle(path)
             time.sleep(poll_s)
     except KeyboardInterrupt:
+        stop_workers()   # an augmentation under way: its FSG workers would run to the budget
         console.print("stopped watching")
 
 
@@ -263,14 +269,13 @@ def _bench_args(p: argparse.ArgumentParser) -> None:
     from dexaug.bench_paper import OBJECTS, VARIANTS
 
     p.add_argument("suite", choices=("paper",), help="paper: the reference paper's Tables 2, 3")
-    p.add_argument("--n", type=int, default=20, help="grasps requested per row")
-    p.add_argument("--budget", type=float, default=30.0, metavar="SECONDS",
-                   help="FSG time budget per row")
+    p.add_argument("--n", type=count, default=20, help="grasps requested per row")
+    budget_arg(p, 30.0, per=" of each row")
     p.add_argument("--objects", nargs="*", default=list(OBJECTS))
     p.add_argument("--methods", nargs="*", default=list(VARIANTS), choices=list(VARIANTS))
     p.add_argument("--workspaces", nargs="*", default=["manual", "demo"],
                    choices=["manual", "demo"])
-    p.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
+    workers_arg(p)
     p.add_argument("--no-six-dir", action="store_true", help="skip the six-dir validation")
     p.add_argument("--out", type=Path, help="also write the Markdown table to this file")
 

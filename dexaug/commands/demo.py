@@ -16,7 +16,8 @@ from pathlib import Path
 
 from rich.console import Console
 
-from dexaug.commands.options import hand_arg
+from dexaug.commands.argtypes import count
+from dexaug.commands.options import hand_arg, workers_arg
 from dexaug.commands.registry import Handler, Setup, command
 
 #: ``dexaug demo ACTION``: action name → (argument setup, handler), in registration order
@@ -43,7 +44,7 @@ def _demo_args(p: argparse.ArgumentParser) -> None:
                    "Hand grasp of the tomato soup can)")
     p.add_argument("--out", type=Path, default=Path("datasets/demo"),
                    help="output folder; default %(default)s")
-    p.add_argument("--n", type=int, default=100, help="grasps to generate; default %(default)s")
+    p.add_argument("--n", type=count, default=100, help="grasps to generate; default %(default)s")
     actions = p.add_subparsers(dest="action", metavar="ACTION", title="actions (none: the main job)")
     for name, (setup, fn) in ACTIONS.items():
         doc = (fn.__doc__ or "").strip()
@@ -85,8 +86,8 @@ def demo(args: argparse.Namespace, console: Console) -> int:
         for path in (session, *raw[:1]):
             load_object(open_session(path).metadata.get("object", ""))
     except DexaugError as exc:
-        console.print(f"[yellow]{exc}\n→ recording a scripted demonstration on a procedural "
-                      f"cylinder instead", highlight=False)
+        console.print(f"{exc}\n→ recording a scripted demonstration on a procedural cylinder "
+                      "instead", style="yellow", highlight=False)
         session = _procedural_demo_session(args.out / "demo_cylinder.mcap")
         raw = []
     if raw:
@@ -184,13 +185,13 @@ def _script_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--object", required=True, help="object to demonstrate (YCB id or primitive)")
     p.add_argument("--out", type=Path, required=True, metavar="DIR",
                    help="folder for demo_<object>.mcap and demos/<object>.json")
-    p.add_argument("--candidates", type=int, default=60,
+    p.add_argument("--candidates", type=count, default=60,
                    help="FSG grasps proposed on the table; default %(default)s")
-    p.add_argument("--tries", type=int, default=8,
+    p.add_argument("--tries", type=count, default=8,
                    help="passing proposals performed and recorded; default %(default)s")
-    p.add_argument("--trial", type=int, default=20,
+    p.add_argument("--trial", type=count, default=20,
                    help="grasps of each candidate's trial augmentation; default %(default)s")
-    p.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
+    workers_arg(p)
 
 
 @action("script", _script_args)
@@ -203,13 +204,9 @@ def demo_script(args: argparse.Namespace, console: Console) -> int:
     (--trial grasps) is kept as DIR/demo_<object>.mcap with its demo DIR/demos/<object>.json.
     """
     from dexaug.pipeline.scripted_demos import script_demo
-    from sim.errors import DexaugError
     from sim.hand.model import Hand
     from sim.validate.batch import default_workers
 
-    for name in ("candidates", "tries", "trial"):
-        if getattr(args, name) < 1:
-            raise DexaugError(f"--{name}: expected a count >= 1, got {getattr(args, name)}")
     made = script_demo(Hand.load(args.hand), args.object, args.out, candidates=args.candidates,
                        tries=args.tries, trial=args.trial,
                        workers=args.workers or default_workers())

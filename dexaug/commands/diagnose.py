@@ -12,30 +12,24 @@ from pathlib import Path
 from typing import Any
 
 from rich.console import Console
-from rich.markup import escape
 from rich.progress import Progress
 from rich.table import Table
+from rich.text import Text
 
+from dexaug.commands.argtypes import int_at_least
 from dexaug.commands.registry import command
 from sim.errors import DexaugError
 
 __all__ = ["diagnose", "diagnose_dataset"]
 
 
-def _count(text: str) -> int:
-    n = int(text)
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text}")
-    return n
-
-
 def _diagnose_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("dataset", type=Path, help="a grasps.h5 written by augment/generate")
     p.add_argument("--object", help="only this object's table (default: every object in the file)")
-    p.add_argument("--n", type=_count, default=20,
+    p.add_argument("--n", type=int_at_least(1), default=20,
                    help="failing grasps replayed per object (from the rejected table); "
                         "default %(default)s")
-    p.add_argument("--passing", type=int, default=5,
+    p.add_argument("--passing", type=int_at_least(0), default=5,
                    help="passing grasps replayed too, for comparison; default %(default)s")
     p.add_argument("--json", type=Path, help="write every grasp's findings and the summary as JSON")
 
@@ -60,9 +54,9 @@ def _summary_table(name: str, summary: dict[str, Any]) -> Table:
     def num(x: float, fmt: str = ".2f") -> str:
         return "—" if x != x else format(x, fmt)
 
-    t.add_row("verdicts", escape(json.dumps(summary["verdicts"])), "")
-    t.add_row("slip mode (palm frame)", escape(json.dumps(summary["slip_modes"])), "")
-    t.add_row("slip starts in", escape(json.dumps(summary["slip_onset_phase"])), "")
+    t.add_row("verdicts", Text(json.dumps(summary["verdicts"])), "")
+    t.add_row("slip mode (palm frame)", Text(json.dumps(summary["slip_modes"])), "")
+    t.add_row("slip starts in", Text(json.dumps(summary["slip_onset_phase"])), "")
     t.add_row("friction use ft/(μ·fn), median", num(f["friction_use_median"]),
               num(p["friction_use_median"]))
     t.add_row("largest servo effort / limit, median", num(f["effort_max_median"]),
@@ -73,8 +67,8 @@ def _summary_table(name: str, summary: dict[str, Any]) -> Table:
               num(p["fn_total_median_n"], ".1f"))
     t.add_row("contact centroid → COM lever (mm), median", num(1e3 * f["lever_arm_median_m"], ".1f"),
               num(1e3 * p["lever_arm_median_m"], ".1f"))
-    t.add_row("weight carried per finger, median", escape(json.dumps(f["support_median"])),
-              escape(json.dumps(p["support_median"])))
+    t.add_row("weight carried per finger, median", Text(json.dumps(f["support_median"])),
+              Text(json.dumps(p["support_median"])))
     return t
 
 
@@ -103,7 +97,7 @@ def diagnose_dataset(path: Path, console: Console, *, object_name: str | None = 
         jobs = [("failing", g) for g in _grasps(table.rejected, n)]
         jobs += [("passing", g) for g in _grasps(table, passing)]
         if not jobs:
-            console.print(f"{escape(name)}: no grasps to replay")
+            console.print(Text(f"{name}: no grasps to replay"))
             continue
         diagnoses = []
         with Progress(console=console, transient=True) as bar:
@@ -118,7 +112,7 @@ def diagnose_dataset(path: Path, console: Console, *, object_name: str | None = 
                                                                                   strict=True)]}
     if json_path is not None:
         write_bytes_atomic(json_path, (json.dumps(report, indent=1, default=float) + "\n").encode())
-        console.print(f"wrote {escape(str(json_path))}")
+        console.print(Text(f"wrote {json_path}"))
     return 0
 
 

@@ -8,16 +8,25 @@ recording to ``dexaug augment`` in a background process.
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable, Sequence
+import contextlib
+from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from rich.console import Console
 from rich.progress import Progress
 from rich.table import Table
+from rich.text import Text
 
+from dexaug.commands.argtypes import count, free_port, port, positive, rate, rig_name
+from dexaug.commands.network import require_free_port, zenoh_message
 from dexaug.commands.options import hand_arg
 from dexaug.commands.registry import command
+from sim.errors import NetworkError, UsageError
+
+if TYPE_CHECKING:
+    from dexaug.pipeline.augment_queue import AugmentQueue
 
 
 def _retarget_args(p: argparse.ArgumentParser) -> None:
@@ -117,7 +126,7 @@ def _import_trajectory_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--side", choices=("left", "right"), required=True,
                    help="which hand the trajectory is (never guessed: MediaPipe's handedness "
                    "label is mirrored on selfie images); must match --hand's operator side")
-    p.add_argument("--fps", type=float, default=30.0, help="frames per second of the trajectory "
+    p.add_argument("--fps", type=positive, default=30.0, help="frames per second of the trajectory "
                    "(timestamps are frame / fps); default %(default)s")
     p.add_argument("--space", choices=SPACES, help="hand: only the hand's shape counts (MediaPipe "
                    "world landmarks, global motion removed), placed at --wrist-pos/--wrist-rpy-deg; "
@@ -167,10 +176,11 @@ def import_trajectory(args: argparse.Namespace, console: Console) -> int:
 def _bridge_args(p: argparse.ArgumentParser) -> None:
     hand_arg(p)
     p.add_argument("--object", help="object on the table (default: configs/teleop.toml [bridge])")
-    p.add_argument("--rig", default="local", help="zenoh key prefix dexaug/<rig>/…")
-    p.add_argument("--listen", type=int, default=7447, help="TCP port to listen on (127.0.0.1)")
-    p.add_argument("--connect", type=int, nargs="*", default=[], help="peer ports to connect to")
-    p.add_argument("--duration", type=float, help="stop after this many seconds")
+    p.add_argument("--rig", type=rig_name, default="local", help="zenoh key prefix dexaug/<rig>/… "
+                   "(letters, digits, _ and -)")
+    p.add_argument("--listen", type=port, default=7447, help="TCP port to listen on (127.0.0.1)")
+    p.add_argument("--connect", type=port, nargs="*", default=[], help="peer ports to connect to")
+    p.add_argument("--duration", type=positive, help="stop after this many seconds")
     p.add_argument("--record", type=Path, help="start recording to this MCAP file at once")
     p.add_argument("--no-view", action="store_true", help="do not render the /view stream")
     p.add_argument("--object-mode", choices=("demo", "free"),
@@ -179,17 +189,23 @@ def _bridge_args(p: argparse.ArgumentParser) -> None:
                    "configs/teleop.toml [bridge] object_mode, demo)")
     p.add_argument("--web", action="store_true",
                    help="also serve the headset page (WebXR) and its WebSocket ingest")
-    p.add_argument("--web-port", type=int, default=8443, help="port of the headset page")
+    p.add_argument("--web-port", type=free_port, default=8443,
+                   help="port of the headset page (0: any free port); default %(default)s")
     p.add_argument("--cert", type=Path,
                    help="folder for the self-signed certificate (default $DEXAUG_CACHE_DIR/web-cert)")
     p.add_argument("--http", action="store_true",
-                   help="plain HTTP (only for localhost, e.g. through `adb reverse`)")
+                   help="plain HTTP (for localhost, e.g. through `adb reverse`: a headset browser "
+                   "allows WebXR over plain HTTP on localhost only)")
+    from teleop.input.access import add_listen_args
+
+    add_listen_args(p, prefix="web-")
     p.add_argument("--auto-augment", action="store_true",
                    help="augment each recording as soon as it is stopped (`dexaug augment` in a "
-                   "background process, so the bridge keeps running)")
+                   "background process, one at a time in a bounded queue, so the bridge keeps "
+                   "running)")
     p.add_argument("--augment-out", type=Path, default=Path("datasets"),
                    help="--auto-augment: output folder (default ./datasets)")
-    p.add_argument("--augment-n", type=int, default=200,
+    p.add_argument("--augment-n", type=count, default=200,
                    help="--auto-augment: grasps per demo; default %(default)s")
 
 
@@ -202,65 +218,70 @@ def bridge(args: argparse.Namespace, console: Console) -> int:
     dexaug/<rig>/view, and answers dexaug/<rig>/control/** (start_recording, stop_recording,
     choose_object, reset_object, set_object_mode, mark_grasp, status). Ctrl-C stops it.
     """
-    from sim.errors import DexaugError
+    import zenoh
+
     from teleop.bridge.main import bridge_main
 
-    console.print(f"bridge on rig {args.rig!r}, listening on tcp/127.0.0.1:{args.listen}")
-    ingest, extra_ports = None, ()
-    if args.web:
-        from teleop.input.tls import local_addresses
-        from teleop.input.web_ingest import WebIngest, WebIngestConfig
-        from teleop.keys import free_tcp_port
-
-        zport = free_tcp_port()  # the ingest's own zenoh peer; the bridge connects to it
-        ingest = WebIngest(args.rig, WebIngestConfig(port=args.web_port, tls=not args.http,
-                                                     cert_dir=args.cert), listen_port=zport)
-        url = ingest.start()
-        extra_ports = (zport,)
-        scheme = url.split(":", 1)[0]
-        lan = [a for a in local_addresses() if a != "127.0.0.1"]
-        console.print(f"headset page: {url}" + "".join(f"  or  {scheme}://{a}:{ingest.port}/"
-                                                        for a in lan), soft_wrap=True)
-    if args.augment_n < 1:
-        raise DexaugError(f"--augment-n: expected a count >= 1, got {args.augment_n}")
+    require_free_port("--listen", args.listen)   # before seconds of loading the hand and scene
     hook = (_auto_augment(args.augment_out, console, ("--n", str(args.augment_n)))
             if args.auto_augment else None)
+    with contextlib.ExitStack() as opened:   # whatever starts is closed, on any failure too
+        if hook is not None:   # last out: lets the queued augmentations finish (Ctrl-C stops them)
+            opened.callback(hook.close)
+        extra_ports = (_start_web_ingest(args, console, opened),) if args.web else ()
+        console.print(f"bridge on rig {args.rig!r}, listening on tcp/127.0.0.1:{args.listen}")
+        try:
+            return bridge_main(args.hand, args.object, args.rig, listen_port=args.listen,
+                               connect_ports=tuple(args.connect) + extra_ports,
+                               duration_s=args.duration, record=args.record,
+                               view=False if args.no_view else None,
+                               object_mode=args.object_mode, on_recording_closed=hook)
+        except zenoh.ZError as exc:   # e.g. --listen taken by another process in the meantime
+            raise NetworkError(f"zenoh failed (bridge --listen {args.listen}): "
+                               f"{zenoh_message(exc)}") from None
+
+
+def _start_web_ingest(args: argparse.Namespace, console: Console,
+                      opened: contextlib.ExitStack) -> int:
+    """Serve the headset page for ``bridge --web``, closed by ``opened``; returns the port of
+    the ingest's own zenoh peer, which the bridge connects to."""
+    from teleop.input.background_server import WebIngestError
+    from teleop.input.web_ingest import WebIngest, WebIngestConfig
+    from teleop.keys import free_tcp_port
+
+    zport = free_tcp_port()
+    ingest = WebIngest(args.rig, WebIngestConfig(host=args.web_host, token=args.web_token,
+                                                 port=args.web_port, tls=not args.http,
+                                                 cert_dir=args.cert), listen_port=zport)
+    opened.callback(ingest.close)
     try:
-        return bridge_main(args.hand, args.object, args.rig, listen_port=args.listen,
-                           connect_ports=tuple(args.connect) + extra_ports,
-                           duration_s=args.duration, record=args.record,
-                           view=False if args.no_view else None, object_mode=args.object_mode,
-                           on_recording_closed=hook)
-    finally:
-        if ingest is not None:
-            ingest.close()
+        ingest.start()
+    except WebIngestError as exc:
+        if isinstance(exc.__cause__, (OSError, OverflowError)):   # the bind itself failed
+            raise NetworkError(f"--web-port {args.web_port}: {exc}") from None
+        raise
+    console.print(Text("headset page: " + "  or  ".join(ingest.page_urls())), soft_wrap=True)
+    return zport
 
 
-def _auto_augment(out: Path, console: Console,
-                  augment_args: Sequence[str] = ()) -> Callable[[Path], None]:
-    """A recording-closed hook that starts ``dexaug augment PATH --out OUT [augment_args]`` in
-    its own process (its log goes to ``OUT/<session>.augment.log``), so augmentation never
-    stalls the bridge."""
-    import subprocess
-    import sys
+def _auto_augment(out: Path, console: Console, augment_args: Sequence[str] = ()) -> AugmentQueue:
+    """A recording-closed hook that queues ``dexaug augment PATH --out OUT [augment_args]``:
+    each in its own process (log in ``OUT/<session>.augment.log``), one at a time in a bounded
+    queue (:mod:`dexaug.pipeline.augment_queue`), so augmentation never stalls the bridge and
+    quick start/stops do not pile up processes."""
+    from dexaug.pipeline.augment_queue import AugmentQueue
 
-    def start(path: Path) -> None:
-        out.mkdir(parents=True, exist_ok=True)
-        log_path = out / f"{path.stem}.augment.log"
-        with open(log_path, "ab") as log_file:
-            subprocess.Popen([sys.executable, "-m", "dexaug", "augment", str(path), "--out",
-                              str(out), *augment_args], stdout=log_file,
-                             stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
-        console.print(f"augmenting {path} in the background (log: {log_path})")
-
-    return start
+    return AugmentQueue(out, augment_args,
+                        notify=lambda message: console.print(Text(message), highlight=False))
 
 
 def _replay_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("file", type=Path, help="MCAP session to replay")
-    p.add_argument("--rate", default="1.0", help="playback speed factor, or 'max'")
-    p.add_argument("--rig", default="local", help="zenoh key prefix dexaug/<rig>/…")
-    p.add_argument("--connect", type=int, nargs="+", default=[7447],
+    p.add_argument("--rate", type=rate, default=1.0,
+                   help="playback speed factor (> 0), or 'max'; default %(default)s")
+    p.add_argument("--rig", type=rig_name, default="local", help="zenoh key prefix "
+                   "dexaug/<rig>/… (letters, digits, _ and -)")
+    p.add_argument("--connect", type=port, nargs="+", default=[7447],
                    help="bridge port(s) to connect to on 127.0.0.1")
     p.add_argument("--object-mode", choices=("demo", "free"),
                    help="set the bridge's object mode first (default: the session's; free for "
@@ -273,26 +294,25 @@ def replay(args: argparse.Namespace, console: Console) -> int:
 
     With original timing (--rate 1.0), scaled, or as fast as possible (--rate max); the bridge
     cannot tell a replay from a live headset. The bridge is first put in the session's object
-    mode (or --object-mode's).
+    mode (or --object-mode's). A session without hand frames is refused (exit status 2).
     """
-    from sim.errors import ConfigError
     from teleop.bridge.session_mode import session_object_mode, tell_bridge
     from teleop.keys import free_tcp_port, open_session
     from teleop.record.replay import replay as replay_session
+    from teleop.record.schemas import TOPIC_HANDS
     from teleop.record.session import open_session as open_recording
 
-    rate: float | str = args.rate
-    if args.rate != "max":
-        try:
-            rate = float(args.rate)
-        except ValueError:
-            raise ConfigError(f"--rate: expected a number or 'max', got {args.rate!r}") from None
-    mode = session_object_mode(open_recording(args.file).metadata, args.file, args.object_mode)
+    recording = open_recording(args.file)
+    if not recording.counts.get(TOPIC_HANDS):
+        held = ", ".join(f"{t} {n}" for t, n in recording.counts.items() if n) or "no messages"
+        raise UsageError(f"{args.file}: no hand frames ({TOPIC_HANDS}) to replay; it holds "
+                         f"{held}")
+    mode = session_object_mode(recording.metadata, args.file, args.object_mode)
     session = open_session(free_tcp_port(), tuple(args.connect))
     try:
         if tell_bridge(session, args.rig, mode) is not None:
             console.print(f"bridge object mode: {mode}")
-        sent = replay_session(args.file, session, args.rig, rate=rate)
+        sent = replay_session(args.file, session, args.rig, rate=args.rate)
     finally:
         session.close()
     console.print(f"replayed {sent} hand-tracking messages from {args.file}")

@@ -13,9 +13,12 @@ import threading
 from pathlib import Path
 
 from rich.console import Console
+from rich.text import Text
 
+from dexaug.commands.argtypes import free_port, int_at_least
 from dexaug.commands.options import augment_options, generation_args
 from dexaug.commands.registry import command
+from dexaug.commands.workers import stop_workers
 
 log = logging.getLogger(__name__)
 
@@ -27,8 +30,10 @@ def _ui_args(p: argparse.ArgumentParser) -> None:
                    help="output folder: one sub-folder per demo (default ./datasets)")
     p.add_argument("--host", default="127.0.0.1", help="listen address (default 127.0.0.1: "
                    "this machine only)")
-    p.add_argument("--port", type=int, default=8765, help="listen port (default 8765)")
-    p.add_argument("--gallery", type=int, default=6, help="grasps rendered in each report")
+    p.add_argument("--port", type=free_port, default=8765, help="listen port (0: any free port; "
+                   "default 8765)")
+    p.add_argument("--gallery", type=int_at_least(0), default=6,
+                   help="grasps rendered in each report (0: no report)")
     generation_args(p)
     p.set_defaults(n=100)
 
@@ -48,9 +53,10 @@ def ui_cmd(args: argparse.Namespace, console: Console) -> int:
                           options=augment_options(args), host=args.host, port=args.port)
     with Dashboard(cfg) as dash:
         url = dash.start()
-        console.print(f"dashboard on [bold]{url}[/] (Ctrl-C to stop)")
+        console.print(Text.assemble("dashboard on ", (url, "bold"), " (Ctrl-C to stop)"))
         try:
             threading.Event().wait()
         except KeyboardInterrupt:
             console.print("stopping")
+            stop_workers()   # a job under way: its FSG workers would run to the budget
     return 0

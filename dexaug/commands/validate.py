@@ -14,6 +14,7 @@ import numpy as np
 from rich.console import Console
 from rich.progress import Progress
 from rich.table import Table
+from rich.text import Text
 
 from dexaug.commands.options import hand_arg
 from dexaug.commands.registry import command
@@ -41,7 +42,8 @@ def _result_table(rows: list[tuple[str, str, object]]) -> Table:
                 "disp. (mm)", "rot. (°)", "GWS ε", "GWS vol.", "time (s)"):
         table.add_column(col, justify="right" if col[0] in "cpdrGt" else "left")
     for name, obj, (res, seconds) in rows:
-        table.add_row(name, obj, res.protocol, "[green]pass" if res.passed else "[red]fail",
+        verdict = Text("pass", style="green") if res.passed else Text("fail", style="red")
+        table.add_row(name, obj, res.protocol, verdict,
                       res.failure or "", str(res.n_contacts), f"{res.penetration_m * 1e3:.1f}",
                       f"{res.displacement_m * 1e3:.1f}", f"{np.degrees(res.rotation_rad):.1f}",
                       f"{res.epsilon:.4f}", f"{res.volume:.2e}", f"{seconds:.2f}")

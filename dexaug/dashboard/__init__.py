@@ -2,6 +2,8 @@
 one-click augmentation per demo (live progress, then the report and its numbers).
 
 :mod:`~dexaug.dashboard.catalog` lists sessions, demos, thumbnails and finished results;
-:mod:`~dexaug.dashboard.jobs` runs one augmentation at a time on a worker thread;
+:mod:`~dexaug.dashboard.jobs` runs one augmentation at a time on a worker thread (a bounded list);
+:mod:`~dexaug.dashboard.guard` refuses foreign Hosts, cross-site requests and, beyond loopback,
+requests without the per-start token;
 :mod:`~dexaug.dashboard.server` serves the page (``static/``) and its JSON API.
 """

@@ -12,6 +12,11 @@ the server.
 
 Why one at a time: every job already uses all the workers it is given; two at once would only
 halve each other's speed and make the progress bars lie about the time left.
+
+Why bounded: the list lives as long as the server and every click adds to it. Finished jobs
+beyond ``max_finished`` are forgotten oldest first (their results stay on disk, where the session
+list finds them); a submission while ``max_queued`` jobs already wait is refused
+(:class:`JobQueueFull`) rather than queued for hours.
 """
 
 from __future__ import annotations
@@ -28,7 +33,7 @@ from typing import Any
 
 from sim.errors import DexaugError
 
-__all__ = ["Job", "JobQueue", "JobTarget", "run_augmentation"]
+__all__ = ["Job", "JobQueue", "JobQueueFull", "JobTarget", "run_augmentation"]
 
 log = logging.getLogger(__name__)
 
@@ -38,6 +43,10 @@ JobTarget = Callable[[Any, Callable[[str, int, int], None]], dict[str, Any]]
 
 #: Job states, in order; "done" and "failed" are final.
 STATES = ("queued", "running", "done", "failed")
+
+
+class JobQueueFull(DexaugError):
+    """A job was submitted while the queue held its maximum of waiting jobs."""
 
 
 @dataclass
@@ -76,11 +85,16 @@ class JobQueue:
     """Jobs run one after another on a worker thread (module docstring).
 
     ``target`` is run for every job (tests give a fake one). :meth:`submit` returns at once;
-    :meth:`snapshot` gives every job's state as JSON for the page.
+    :meth:`snapshot` gives every job's state as JSON for the page. At most ``max_queued`` jobs
+    wait and ``max_finished`` finished ones are kept (module docstring).
     """
 
-    def __init__(self, target: JobTarget) -> None:
+    def __init__(self, target: JobTarget, *, max_queued: int = 20, max_finished: int = 100) -> None:
+        if max_queued < 1 or max_finished < 0:
+            raise ValueError(f"max_queued must be >= 1 and max_finished >= 0, got {max_queued} "
+                             f"and {max_finished}")
         self._target = target
+        self.max_queued, self.max_finished = max_queued, max_finished
         self._lock = threading.Lock()
         self._jobs: dict[int, Job] = {}
         self._pending: queue.Queue[Job | None] = queue.Queue()
@@ -91,11 +105,16 @@ class JobQueue:
 
     def submit(self, key: str, label: str, payload: Any) -> Job:
         """Queue a job for ``key`` (a demo); while one for that key is queued or running, that
-        one is returned instead (a double click starts nothing twice)."""
+        one is returned instead (a double click starts nothing twice). Raises
+        :class:`JobQueueFull` while ``max_queued`` jobs wait."""
         with self._lock:
             for job in self._jobs.values():
                 if job.key == key and job.active:
                     return job
+            waiting = sum(j.state == "queued" for j in self._jobs.values())
+            if waiting >= self.max_queued:
+                raise JobQueueFull(f"{waiting} augmentations are already waiting (the most the "
+                                   "dashboard queues); try again when one has started")
             job = Job(next(self._ids), key, label, payload)
             self._jobs[job.id] = job
         log.info("job %d queued: %s", job.id, label)
@@ -123,6 +142,14 @@ class JobQueue:
         with self._lock:
             for k, v in fields.items():
                 setattr(job, k, v)
+            if not job.active:
+                self._forget_oldest_finished()
+
+    def _forget_oldest_finished(self) -> None:
+        """Drop finished jobs beyond ``max_finished``, oldest first (the lock is held)."""
+        finished = [i for i, j in self._jobs.items() if not j.active]   # ids ascend: oldest first
+        for i in finished[: max(0, len(finished) - self.max_finished)]:
+            del self._jobs[i]
 
     def _run(self) -> None:
         while not self._closing.is_set():

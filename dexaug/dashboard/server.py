@@ -9,6 +9,11 @@ Routes::
     GET  /thumbnails/KEY.png    the demo grasp (a placeholder SVG without OpenGL)
     GET  /results/...           the output folder: each demo's report.html and its images
 
+Every request passes :class:`~dexaug.dashboard.guard.Guard` first (Host check against DNS
+rebinding, JSON plus a custom header and a same-origin ``Origin`` for a POST, the per-start token
+when listening beyond loopback): the page's JS sends ``X-Dexaug: 1`` and, when its URL carries a
+token, ``X-Dexaug-Token``.
+
 The page polls ``/api/jobs`` for live progress: polling needs no connection state on either
 side, survives a restarted server, and at a few requests per second costs nothing here.
 
@@ -22,8 +27,11 @@ same way.
 from __future__ import annotations
 
 import asyncio
+import contextlib
+import dataclasses
 import html
 import logging
+import socket
 import threading
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -34,7 +42,8 @@ from typing import Any
 from aiohttp import web
 
 from dexaug.dashboard.catalog import Catalog, result_view
-from dexaug.dashboard.jobs import JobQueue, JobTarget, run_augmentation
+from dexaug.dashboard.guard import WILDCARDS, Guard
+from dexaug.dashboard.jobs import JobQueue, JobQueueFull, JobTarget, run_augmentation
 from dexaug.pipeline.options import AugmentOptions
 from sim.errors import DexaugError
 
@@ -50,13 +59,16 @@ class DashboardError(DexaugError):
 @dataclass
 class DashboardConfig:
     """Where the sessions are, where results go, what an augmentation does, where to listen
-    (port 0 picks a free one)."""
+    (port 0 picks a free one; an address beyond loopback makes a per-start token required),
+    and how many jobs the list keeps (``max_queued`` waiting, ``max_finished`` done or failed)."""
 
     sessions_dir: Path = Path("recordings")
     out_root: Path = Path("datasets")
     options: AugmentOptions = field(default_factory=AugmentOptions)
     host: str = "127.0.0.1"
     port: int = 8765
+    max_queued: int = 20
+    max_finished: int = 100
 
 
 class Dashboard:
@@ -67,12 +79,13 @@ class Dashboard:
                  target: JobTarget = run_augmentation) -> None:
         cfg = config or DashboardConfig()
         # absolute: summaries store dataset paths, and the report links are made relative to it
-        self.config = DashboardConfig(Path(cfg.sessions_dir).resolve(),
-                                      Path(cfg.out_root).resolve(), cfg.options, cfg.host,
-                                      cfg.port)
+        self.config = dataclasses.replace(cfg, sessions_dir=Path(cfg.sessions_dir).resolve(),
+                                          out_root=Path(cfg.out_root).resolve())
         self.catalog = Catalog(self.config.sessions_dir, self.config.out_root,
                                self.config.options)
-        self.jobs = JobQueue(target)
+        self.guard = Guard(self.config.host)
+        self.jobs = JobQueue(target, max_queued=self.config.max_queued,
+                             max_finished=self.config.max_finished)
         self._render = ThreadPoolExecutor(1, thread_name_prefix="dexaug-render")
         self._static = Path(str(resources.files("dexaug.dashboard") / "static"))
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -88,7 +101,7 @@ class Dashboard:
             raise DashboardError(f"{self._static}: the page assets (index.html, app.js) are "
                                  "missing; reinstall dexaug")
         self.config.out_root.mkdir(parents=True, exist_ok=True)
-        app = web.Application()
+        app = web.Application(middlewares=[self.guard.middleware])
         app.add_routes([web.get("/", self._index), web.get("/favicon.ico", self._icon),
                         web.get("/api/sessions", self._sessions), web.get("/api/jobs", self._jobs),
                         web.post("/api/augment", self._augment),
@@ -107,15 +120,21 @@ class Dashboard:
             site = web.TCPSite(runner, self.config.host, self.config.port)
             await site.start()
             sock = site._server.sockets[0]  # type: ignore[union-attr]  # aiohttp keeps it here
-            started.set_result(int(sock.getsockname()[1]))
+            self.guard.port = int(sock.getsockname()[1])
+            started.set_result(self.guard.port)
             await self._stop.wait()
         except OSError as exc:
             started.set_exception(exc)
         finally:
             await runner.cleanup()
 
+    @property
+    def token(self) -> str | None:
+        """The per-start token every request needs (None on a loopback address)."""
+        return self.guard.token
+
     def start(self, timeout_s: float = 10.0) -> str:
-        """Serve in a background thread; returns the page URL."""
+        """Serve in a background thread; returns the page URL (with the token, if any)."""
         app = self._app()
         started: Future[int] = Future()
 
@@ -135,17 +154,21 @@ class Dashboard:
         except Exception as exc:
             raise DashboardError(f"cannot serve on {self.config.host}:{self.config.port}: "
                                  f"{exc}") from exc
-        host = "localhost" if self.config.host in ("127.0.0.1", "0.0.0.0", "::") else \
-            self.config.host
-        self.url = f"http://{host}:{self.port}/"
-        log.info("dashboard on %s (sessions %s, results %s)", self.url,
+        base = f"http://{_url_host(self.config.host)}:{self.port}/"
+        self.url = base + (f"?token={self.token}" if self.token else "")
+        log.info("dashboard on %s (sessions %s, results %s)", base,   # the token stays out of logs
                  self.config.sessions_dir, self.config.out_root)
+        if self.token:
+            log.warning("the dashboard listens beyond this machine (%s): anyone with its URL "
+                        "can start augmentations", self.config.host)
         return self.url
 
     def close(self) -> None:
         """Stop serving, stop taking jobs, and stop the render thread."""
         if self._thread is not None and self._loop is not None and self._stop is not None:
-            self._loop.call_soon_threadsafe(self._stop.set)
+            # a RuntimeError: the loop is closed, a failed start() ended it already
+            with contextlib.suppress(RuntimeError):
+                self._loop.call_soon_threadsafe(self._stop.set)
             self._thread.join(10.0)
         self._thread = None
         self.jobs.close()
@@ -201,8 +224,11 @@ class Dashboard:
                                      status=404)
         if entry.error:
             return web.json_response({"error": entry.error}, status=409)
-        job = self.jobs.submit(key, entry.demo.id,
-                               (entry.demo, str(self.config.out_root), self.config.options))
+        try:
+            job = self.jobs.submit(key, entry.demo.id,
+                                   (entry.demo, str(self.config.out_root), self.config.options))
+        except JobQueueFull as exc:
+            return web.json_response({"error": str(exc)}, status=429)
         return web.json_response({"job": self._job_json(job.to_json())})
 
     async def _thumbnail(self, request: web.Request) -> web.StreamResponse:
@@ -216,6 +242,17 @@ class Dashboard:
             return web.FileResponse(path)
         return web.Response(body=_placeholder(why or "no image"), content_type="image/svg+xml",
                             headers={"X-Dexaug-Placeholder": "1", "Cache-Control": "no-store"})
+
+
+def _url_host(bind: str) -> str:
+    """The host part of the printed URL: ``localhost`` for 127.0.0.1, this machine's name on a
+    wildcard bind (the Host check accepts both), else the bound address (IPv6 bracketed)."""
+    host = bind.strip("[]")
+    if host in ("127.0.0.1", "localhost"):
+        return "localhost"
+    if host in WILDCARDS:
+        return socket.gethostname()
+    return f"[{host}]" if ":" in host else host
 
 
 def _placeholder(why: str) -> bytes:

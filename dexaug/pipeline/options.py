@@ -73,6 +73,21 @@ def run_key(demo: Demo, opts: AugmentOptions, configs: dict[str, str] | None = N
     return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()[:16]
 
 
+#: longest folder name :func:`demo_dir` makes (file systems refuse names over 255 bytes)
+_MAX_DIR_NAME = 120
+
+
 def demo_dir(out_root: Path | str, demo: Demo) -> Path:
-    """The folder of ``demo``'s results: its id with path-unsafe characters replaced."""
-    return Path(out_root) / re.sub(r"[^A-Za-z0-9_.@-]+", "_", demo.id)
+    """The folder of ``demo``'s results, always directly inside ``out_root``: its id with
+    path-unsafe characters (separators, NUL, anything outside ``[A-Za-z0-9_.@-]``) replaced by
+    ``_``, a leading dot prefixed with ``_`` (so ``.`` and ``..`` never name ``out_root`` or its
+    parent, and no result folder is hidden), and an over-long id cut and given a hash of the
+    whole id. Ordinary ids (``<session>@<time>s``) map to themselves, so earlier results are
+    found again."""
+    name = re.sub(r"[^A-Za-z0-9_.@-]+", "_", demo.id)
+    if not name or name.startswith("."):
+        name = "_" + name
+    if len(name) > _MAX_DIR_NAME:
+        digest = hashlib.sha256(demo.id.encode("utf-8", "surrogatepass")).hexdigest()[:12]
+        name = f"{name[:_MAX_DIR_NAME - 13]}-{digest}"
+    return Path(out_root) / name

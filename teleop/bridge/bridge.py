@@ -22,6 +22,10 @@ Recording (``start_recording``): raw ``/hands`` as received, and per published s
 ``seq`` of the frame answered and one log time — and the ``/events`` with the simulated time
 they happen at, so demo extraction can pair and time them on the simulation's own clock.
 
+Faults (:mod:`teleop.bridge.faults`): a recorder write error stops the recording, the loop goes
+on; the hand base moves at most ``hand_max_step_m`` per frame; an unstable simulation (MuJoCo
+reset its data) is restored, the simulated clock never going backwards — each with an event.
+
 Output: ``/state`` JSON (``seq`` of the frame answered — latency measurements match on it —,
 sim time, simulated and retargeted qpos, palm and object poses, hand–object contacts) at most
 ``state_rate_hz`` and on every new frame; ``/view`` JPEG from a head-following camera
@@ -63,11 +67,12 @@ from sim.world.scene import PhysicsOptions, Scene
 from teleop import keys as zkeys
 from teleop.bridge.config import BridgeConfig, check_object_mode, load_bridge_config
 from teleop.bridge.control import BridgeControl
+from teleop.bridge.faults import BridgeFaults
 from teleop.bridge.scene_contacts import contact_records, tip_finger_bodies
 from teleop.bridge.view_stream import ViewStream, gl_backend, head_pose
 from teleop.messages import MAGIC, SCHEMA_VERSION, HandFrame, MessageError, decode
 from teleop.record.contact_record import ContactRecord
-from teleop.record.recorder import SessionRecorder
+from teleop.record.recorder import RecordingFailed, SessionRecorder
 from teleop.record.schemas import finite_list
 from teleop.retarget.config import load_retarget_config
 from teleop.retarget.retargeter import Retargeter
@@ -80,7 +85,7 @@ Array = np.ndarray
 _WARN_EVERY = 100  # after the first few, log one bad-input warning per this many
 
 
-class Bridge(BridgeControl):
+class Bridge(BridgeFaults, BridgeControl):
     """Hands in, simulated hand + object out; see the module docstring.
 
     ``session``: an open zenoh session to use (the caller closes it); without one the bridge
@@ -102,6 +107,7 @@ class Bridge(BridgeControl):
             self.retargeter.calibrate_scale(calibration_frames)
         self.object_name = object_name or self.config.object
         self.object_mode = check_object_mode(self.config.object_mode, "BridgeConfig.object_mode")
+        self._init_faults()
         self._build_scene(self.object_name)
 
         self.counts: Counter[str] = Counter()
@@ -152,9 +158,7 @@ class Bridge(BridgeControl):
         q = self.hand.open_pose if q is None else q
         self.scene.set_hand_joints(q)
         self.scene.set_hand_ctrl(q)
-        # park the hand above the table until the first frame arrives
-        park = np.array([*self.config.object_pos_m, 0.0]) + np.array([-0.2, 0.0, 0.3])
-        self.scene.set_hand_pose(park, np.array([1.0, 0.0, 0.0, 0.0]), teleport=True)
+        self._park_hand()  # above the table until the first frame arrives
         self._place_object()  # after parking: the hand must not be where the object drops
 
     def _home_pose(self, obj: Any) -> tuple[Array, Array]:
@@ -189,12 +193,7 @@ class Bridge(BridgeControl):
         except MessageError as exc:
             self._count_bad("malformed", str(exc))
             return
-        rec = self._recorder
-        if rec is not None:
-            try:
-                rec.write_hands(raw)
-            except Exception as exc:  # a recorder failure must not stop the input
-                logger.warning("recording /hands failed: %s", exc)
+        self._record("write_hands", raw)
         with self._lock:
             self.counts["accepted"] += 1
             if self.config.deterministic:
@@ -232,7 +231,8 @@ class Bridge(BridgeControl):
         if not res.held:
             self._ever_tracked = True
         if self._ever_tracked:  # before the first tracked frame the hand stays parked
-            self.scene.set_hand_pose(base, np.asarray(res.base_quat_wxyz, float), teleport=False)
+            self.scene.set_hand_pose(self._limit_base(base), np.asarray(res.base_quat_wxyz, float),
+                                     teleport=False)
         self.scene.set_hand_ctrl(self._q_target)
         with self._lock:
             self.counts["processed"] += 1
@@ -253,8 +253,11 @@ class Bridge(BridgeControl):
                 self._steps_done += n - self.config.max_catchup_steps
                 n = self.config.max_catchup_steps
             self._steps_done += max(n, 0)
+        t0_s = d.time
         for _ in range(max(n, 0)):
             mujoco.mj_step(m, d)
+        if n > 0:
+            self._check_physics(t0_s, n)
 
     def contacts(self) -> list[ContactRecord]:
         """Hand–object contacts of the current state, in world, object and hand-body frames."""
@@ -278,15 +281,14 @@ class Bridge(BridgeControl):
         self._pub_state.put(json.dumps(msg).encode())
         with self._lock:
             self.counts["states"] += 1
-        rec = self._recorder
-        if rec is not None:  # one step, one clock: the same t_s, seq and log time on both
+        if self._recorder is not None:  # one step, one clock: the same t_s, seq and log time
             extra = {"q_target": msg["q_target"], "held": held}
             t_ns = time.time_ns()
-            rec.write_state(qpos, palm_p, palm_q, obj_p, obj_q, t_s=self.sim_time_s,
-                            seq=self._last_seq, tracked=not held, object_name=self.object_name,
-                            extra=extra, log_time_ns=t_ns)
-            rec.write_contacts(contacts, t_s=self.sim_time_s, seq=self._last_seq,
-                               object_name=self.object_name, log_time_ns=t_ns)
+            self._record("write_state", qpos, palm_p, palm_q, obj_p, obj_q, t_s=self.sim_time_s,
+                         seq=self._last_seq, tracked=not held, object_name=self.object_name,
+                         extra=extra, log_time_ns=t_ns)
+            self._record("write_contacts", contacts, t_s=self.sim_time_s, seq=self._last_seq,
+                         object_name=self.object_name, log_time_ns=t_ns)
 
     def step_once(self, now: float | None = None) -> bool:
         """One loop tick: pending controls, the newest frame (if any), physics up to ``now``
@@ -371,7 +373,10 @@ class Bridge(BridgeControl):
         """Stop the loop and the view, close a recording, undeclare, close an owned session."""
         self.stop()
         if self._recorder is not None:
-            self._cmd_stop_recording({"reason": "bridge closed"})
+            try:
+                self._cmd_stop_recording({"reason": "bridge closed"})
+            except RecordingFailed as exc:
+                logger.warning("%s", exc)
         self._view.stop()
         for ent in (self._sub, self._queryable, self._pub_state, self._pub_view, self._pub_events):
             with contextlib.suppress(Exception):  # already gone with the session
@@ -390,6 +395,4 @@ class Bridge(BridgeControl):
         self._pub_view.put(jpeg)
         with self._lock:
             self.counts["views"] += 1
-        rec = self._recorder
-        if rec is not None:
-            rec.write_view(jpeg)
+        self._record("write_view", jpeg)

@@ -31,7 +31,7 @@ _BRIDGE_KEYS = {"state_rate_hz", "view_enabled", "view_rate_hz", "view_max_duty"
                 "jpeg_quality", "world_offset_m", "object", "object_pos_m", "object_yaw_deg",
                 "table", "object_mode", "settle_speed_mps", "settle_still_s",
                 "settle_timeout_s", "timestep_s", "max_catchup_steps", "steps_per_frame", "recordings_dir",
-                "deterministic"}
+                "deterministic", "hand_max_step_m"}
 
 
 @dataclass
@@ -60,6 +60,8 @@ class BridgeConfig:
     steps_per_frame: int = 3
     recordings_dir: Path = Path("recordings")
     deterministic: bool = False
+    #: metres per processed frame the hand base may move at most (teleop.bridge.faults)
+    hand_max_step_m: float = 0.1
 
 
 def load_bridge_config(path: Path | str | None = None) -> BridgeConfig:
@@ -97,6 +99,7 @@ def load_bridge_config(path: Path | str | None = None) -> BridgeConfig:
         steps_per_frame=sec.int("steps_per_frame", d.steps_per_frame, min=0),
         recordings_dir=rec_dir,
         deterministic=sec.bool("deterministic", d.deterministic),
+        hand_max_step_m=sec.float("hand_max_step_m", d.hand_max_step_m, min=1e-4),
     )
 
 

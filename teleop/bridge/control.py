@@ -6,7 +6,8 @@ steps (:meth:`BridgeControl._drain_controls`); when no loop runs, the caller's t
 JSON in, JSON out: ``{"ok": true, ...}`` or ``{"ok": false, "error": ...}``, never an
 exception. ``status`` is answered from the zenoh thread and never waits for the loop.
 
-Commands (:data:`COMMANDS`): ``start_recording`` (``path``, ``overwrite``),
+Commands (:data:`COMMANDS`): ``start_recording`` (``name``: a file name in
+``recordings_dir``; in-process callers only: ``path``, ``overwrite``),
 ``stop_recording`` (``reason``), ``choose_object`` (``object``), ``reset_object``,
 ``set_object_mode`` (``object_mode`` "demo" or "free": the object is put back on its spot in
 that mode, :mod:`teleop.bridge.object_mode`), ``mark_grasp`` (extra keys go into the event),
@@ -19,6 +20,17 @@ when recording, to the session's ``/events`` with the simulated time of the step
 at (``t_s``, seconds; a ``grasp_mark`` also names the ``seq`` of the last frame answered), the
 clock demo extraction matches them on.
 
+Trust: a query on the zenoh queryable is untrusted (any process that reaches the rig's peer,
+and the headset page's forwarded requests). :func:`remote_args` checks its arguments before it is
+queued: a recording is chosen by ``name`` only (sanitised to a plain file name, ``.mcap``
+added, created inside ``recordings_dir`` and never over an existing file: a ``_2``, ``_3``…
+suffix is added), ``path`` and ``overwrite`` are refused, and ``choose_object`` takes an id of
+the installed catalogue (a primitive or a YCB folder), never a file. In-process Python calls of
+:meth:`BridgeControl.control` (the CLI's ``--record PATH``, re-recording) are trusted.
+
+A failed ``choose_object`` changes nothing: the new scene is built first, and on failure the
+previous scene (and ``/view``, never stopped) stays.
+
 :class:`BridgeControl` is a mixin of :class:`teleop.bridge.bridge.Bridge`: the state it reads
 and changes is the bridge's (the attributes annotated on the class).
 """
@@ -28,6 +40,7 @@ from __future__ import annotations
 import json
 import logging
 import queue
+import re
 import threading
 import time
 from collections import Counter
@@ -39,6 +52,8 @@ import numpy as np
 import zenoh
 
 from sim.hand.model import Hand
+from sim.world.objects import one_line, ycb_folders
+from sim.world.primitives import PRIMITIVES
 from sim.world.scene import Scene
 from teleop import keys as zkeys
 from teleop.bridge.config import BridgeConfig, check_object_mode
@@ -46,15 +61,77 @@ from teleop.bridge.object_mode import Placement, place_object, table_record
 from teleop.bridge.view_stream import ViewStream
 from teleop.record.contact_record import ContactRecord
 from teleop.record.recorder import SessionRecorder
+from teleop.record.session_file import RecordingFailed
 from teleop.retarget.retargeter import Retargeter
 
-__all__ = ["COMMANDS", "BridgeControl"]
+__all__ = ["COMMANDS", "BridgeControl", "recording_file", "remote_args"]
 
 logger = logging.getLogger(__name__)
 Array = np.ndarray
 
 #: the bridge's control commands: the rig's common ones and the object mode switch
 COMMANDS: tuple[str, ...] = zkeys.CONTROL_COMMANDS
+#: the bridge attributes a scene build sets: saved before ``choose_object`` builds, restored
+#: when the build fails
+_SCENE_STATE = ("scene", "object_name", "_tip_fingers", "_object_home", "placement")
+_OBJECT_ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,99}")
+_NAME_MAX_CHARS = 100
+_MAX_SUFFIX = 1000
+
+
+def installed_object(name: object) -> str:
+    """``name`` if it is an object id of the installed catalogue: a primitive, a YCB folder
+    (``004_sugar_box``) or its unique id/name (``004``, ``sugar_box``); ValueError otherwise,
+    before any file is opened."""
+    text = str(name)
+    if not _OBJECT_ID.fullmatch(text):
+        raise ValueError(f"choose_object: object {one_line(text)[:80]!r} is not an object id "
+                         "(letters, digits, '_', '-'); a remote caller picks from the installed "
+                         "catalogue, never a file")
+    if text in PRIMITIVES:
+        return text
+    folders = [f.name for f in ycb_folders()]
+    matches = [f for f in folders if f == text or f.startswith(f"{text}_") or f[4:] == text]
+    if text in folders or len(matches) == 1:
+        return text
+    raise ValueError(f"choose_object: {text!r} is not an installed object (primitives: "
+                     f"{', '.join(PRIMITIVES)}; {len(folders)} YCB objects"
+                     f"{' (ambiguous: ' + ', '.join(matches) + ')' if matches else ''})")
+
+
+def remote_args(command: str, args: dict[str, Any]) -> dict[str, Any]:
+    """The arguments of an untrusted (zenoh) call of ``command``, checked (module docstring);
+    ValueError names what is refused."""
+    if command == "start_recording":
+        refused = sorted(k for k in args if k != "name")
+        if refused:
+            raise ValueError(f"start_recording: {refused} not accepted from a remote caller; "
+                             "pass a 'name' (the file goes into the recordings folder, never "
+                             "over an existing one)")
+        if "name" in args and not isinstance(args["name"], str):
+            raise ValueError("start_recording: 'name' must be a string")
+    elif command == "choose_object":
+        args = {**args, "object": installed_object(args.get("object"))}
+    return args
+
+
+def recording_file(folder: Path, name: str) -> Path:
+    """A new ``.mcap`` file in ``folder`` named after ``name`` reduced to a plain file name
+    (directories dropped, characters other than letters, digits, ``.``, ``_``, ``-`` replaced,
+    no leading dot, at most 100 characters); ``_2``, ``_3``… is added while the name is taken."""
+    base = Path(name.replace("\\", "/")).name
+    stem = re.sub(r"[^A-Za-z0-9._-]", "_", base).lstrip(".")
+    stem = stem[:-len(".mcap")] if stem.lower().endswith(".mcap") else stem
+    stem = stem[:_NAME_MAX_CHARS].rstrip(".")
+    if not stem:
+        raise ValueError(f"start_recording: name {one_line(name)[:80]!r} has no usable file name "
+                         "characters (letters, digits, '.', '_', '-')")
+    for k in range(1, _MAX_SUFFIX + 1):
+        path = folder / (f"{stem}.mcap" if k == 1 else f"{stem}_{k}.mcap")
+        if not path.exists() and not path.is_symlink():
+            return path
+    raise ValueError(f"start_recording: {folder}: {stem}.mcap and {_MAX_SUFFIX - 1} suffixed "
+                     "names are taken")
 
 
 class _Pending:
@@ -96,6 +173,7 @@ class BridgeControl:
     sim_time_s: float
     view_active: bool
     _build_scene: Callable[[str], None]
+    _notify: Callable[[str, dict[str, Any]], None]
 
     def _init_controls(self) -> None:
         self._controls = queue.Queue()
@@ -114,16 +192,26 @@ class BridgeControl:
                 result = {"ok": False, "error": f"unknown command {command!r}; one of "
                                                  f"{list(COMMANDS)}"}
             else:
-                result = self.control(command, args, timeout_s=10.0)
+                result = self.control(command, args, timeout_s=10.0, trusted=False)
         except Exception as exc:
-            result = {"ok": False, "error": f"{type(exc).__name__}: {exc}"}
+            result = {"ok": False, "error": f"{type(exc).__name__}: {one_line(str(exc))}"}
         query.reply(query.key_expr, json.dumps(result).encode())
 
     def control(self, command: str, args: dict[str, Any] | None = None, *,
-                timeout_s: float = 10.0) -> dict[str, Any]:
+                timeout_s: float = 10.0, trusted: bool = True) -> dict[str, Any]:
         """Run a control command in the loop thread (or here when no loop runs) and return its
-        JSON-able result."""
-        pending = _Pending(command, dict(args or {}))
+        JSON-able result. ``trusted``: this process's own code, which may pass a recording
+        ``path``/``overwrite`` or an object file; the zenoh queryable passes False and its
+        arguments go through :func:`remote_args` first (module docstring)."""
+        args = dict(args or {})
+        if not trusted:
+            try:
+                args = remote_args(command, args)
+            except ValueError as exc:
+                why = str(exc)   # not the exception: a kept log record would hold the query
+                logger.warning("refused remote control %s: %s", command, why)
+                return {"ok": False, "error": why}
+        pending = _Pending(command, args)
         if not self.loop_running:
             self._execute(pending)
             return pending.result
@@ -147,22 +235,24 @@ class BridgeControl:
             handler = getattr(self, f"_cmd_{p.command}")
             p.result = {"ok": True, **handler(p.args)}
         except Exception as exc:
-            logger.warning("control %s failed: %s", p.command, exc)
-            p.result = {"ok": False, "error": f"{type(exc).__name__}: {exc}"}
+            logger.warning("control %s failed: %s", p.command, one_line(str(exc)))
+            p.result = {"ok": False, "error": f"{type(exc).__name__}: {one_line(str(exc))}"}
         p.done.set()
 
     def _event(self, event_type: str, payload: dict[str, Any] | None = None) -> None:
-        msg = {"type": event_type, "t_s": self.sim_time_s, **(payload or {})}
-        self._pub_events.put(json.dumps(msg).encode())
-        if self._recorder is not None:
-            self._recorder.write_event(event_type, payload, t_s=self.sim_time_s)
+        """Publish and record an event through the bridge's guarded path (a write error stops
+        the recording, never the command: :mod:`teleop.bridge.faults`)."""
+        self._notify(event_type, payload or {})
 
     def _cmd_start_recording(self, args: dict[str, Any]) -> dict[str, Any]:
         if self._recorder is not None:
             raise RuntimeError(f"already recording to {self._recording_path}")
-        path = Path(args["path"]) if "path" in args else (
-            self.config.recordings_dir / f"{self.keys.rig}_{time.strftime('%Y%m%d_%H%M%S')}"
-                                         f"_{time.time_ns() % 1_000_000:06d}.mcap")
+        if "path" in args:   # in-process callers only (remote_args refuses it)
+            path = Path(args["path"])
+        else:
+            name = args.get("name") or (f"{self.keys.rig}_{time.strftime('%Y%m%d_%H%M%S')}"
+                                        f"_{time.time_ns() % 1_000_000:06d}")
+            path = recording_file(self.config.recordings_dir, str(name))
         path.parent.mkdir(parents=True, exist_ok=True)
         meta = {"hand": self.hand.name, "object": self.object_name,
                 "joint_names": list(self.hand.joint_names),
@@ -179,9 +269,13 @@ class BridgeControl:
         rec, path = self._recorder, self._recording_path
         if rec is None:
             raise RuntimeError("not recording")
-        self._recorder = None
-        rec.close(reason=str(args.get("reason", "stop_recording")))
-        self._recording_path = None
+        self._recorder, self._recording_path = None, None
+        try:
+            rec.close(reason=str(args.get("reason", "stop_recording")))
+        except RecordingFailed as exc:
+            logger.warning("recording %s failed while closing: %s", path, exc)
+            self._notify("recording_failed", {"path": str(path), "reason": str(exc)})
+            raise
         if self._on_recording_closed is not None and path is not None:
             try:
                 self._on_recording_closed(path)
@@ -191,12 +285,16 @@ class BridgeControl:
 
     def _cmd_choose_object(self, args: dict[str, Any]) -> dict[str, Any]:
         name = str(args["object"])
-        was_view = self.view_active
-        if was_view:
-            self._view.stop()
-        self._build_scene(name)
+        saved = {k: getattr(self, k) for k in _SCENE_STATE if hasattr(self, k)}
+        try:
+            self._build_scene(name)
+        except Exception:
+            for k, v in saved.items():   # the previous scene stays, and /view never stopped
+                setattr(self, k, v)
+            raise
         self._t0_wall, self._steps_done = None, 0
-        if was_view:
+        if self.view_active:   # it rendered the previous model until now
+            self._view.stop()
             self._view.start(self.scene.model)
         self._event("object_changed", {"object": name, **self.placement.to_json()})
         return {"object": name}

@@ -66,6 +66,11 @@ class BackgroundServer:
                 poller = loop.create_task(self._task())
             except BaseException as exc:  # reported to start()'s caller
                 errors.append(exc)
+                if self._runner is not None:
+                    with contextlib.suppress(Exception):
+                        loop.run_until_complete(self._runner.cleanup())
+                loop.close()
+                self.loop = None   # nothing serves: stop() has nothing to stop
                 ready.set()
                 return
             ready.set()

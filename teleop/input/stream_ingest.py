@@ -43,6 +43,7 @@ import zenoh
 
 from sim import transforms
 from teleop import keys as zkeys
+from teleop.input.access import is_loopback
 from teleop.input.webxr import NUM_WEBXR_JOINTS, WEBXR_JOINTS, from_webxr_joints
 from teleop.messages import HandFrame, HandState, MessageError, encode
 
@@ -147,12 +148,15 @@ class StreamIngest:
     """UDP and/or TCP listeners → :class:`HandFrame` on ``dexaug/<rig>/hands``.
 
     ``udp_port``/``tcp_port``: where to listen (None: not that protocol; 0: a free port, read
-    back from :attr:`udp_port`/:attr:`tcp_port`). ``session``: a zenoh session to use, else a
-    loopback peer on ``listen_port``/``connect_ports`` (closed in :meth:`close`).
+    back from :attr:`udp_port`/:attr:`tcp_port`). ``host``: the listen address, loopback by
+    default (``adb reverse`` brings a USB headset there); the streamer apps cannot send a token,
+    so another address (``0.0.0.0`` for Wi-Fi) lets anyone on that network inject hand frames,
+    and a warning says so. ``session``: a zenoh session to use, else a loopback peer on
+    ``listen_port``/``connect_ports`` (closed in :meth:`close`).
     """
 
     def __init__(self, rig: str = "local", *, udp_port: int | None = 9000,
-                 tcp_port: int | None = None, host: str = "0.0.0.0",
+                 tcp_port: int | None = None, host: str = "127.0.0.1",
                  session: zenoh.Session | None = None, listen_port: int | None = None,
                  connect_ports: tuple[int, ...] = (), stale_after_s: float = 0.1,
                  joint_radius_m: float = 0.008) -> None:
@@ -206,8 +210,11 @@ class StreamIngest:
                                  name="dexaug-stream", daemon=True)
             t.start()
             self._threads.append(t)
-        logger.info("streamer ingest for rig %s: udp %s, tcp %s", rig, self.udp_port,
+        logger.info("streamer ingest for rig %s on %s: udp %s, tcp %s", rig, host, self.udp_port,
                     self.tcp_port)
+        if not is_loopback(host):
+            logger.warning("streamer ingest listens on %s: anyone who reaches this machine there "
+                           "can send hand frames to rig %s (the apps have no token)", host, rig)
 
     def _line(self, parser: HtsParser, line: str, where: str) -> None:
         t_rx = time.time()

@@ -10,11 +10,22 @@ JPEGs, a throttled summary of ``/state`` (contacts, held), ``/events`` and a 1 H
 (recording or not) to the page, and runs the page's control requests (start/stop recording,
 mark grasp) as ``dexaug/<rig>/control/<cmd>`` queries.
 
+Access (:mod:`teleop.input.access`): the page listens on 127.0.0.1 unless ``host`` says
+otherwise; each start makes a random token that the page URL carries (``?token=…``) and the page
+sends on the WebSocket handshake and with every control message. Off loopback (or with a
+``token`` given) it is required; every request's Host must name this machine and a browser's
+Origin must be the page's own. The page's control requests are untrusted: only
+:data:`PAGE_COMMANDS` with the arguments of :data:`PAGE_ARGS` (a recording ``name``, never a
+``path`` or ``overwrite``) are forwarded, and the bridge checks them again.
+
 One headset at a time: the first WebSocket that says ``hello`` owns the rig; a second one gets a
-``refused`` message (shown on its page) and is closed, and the bridge logs it. A reconnect with
+``refused`` message (shown on its page) and is closed, and the bridge logs it — unless the
+newcomer presents the token and the holder did not (a tokenless client admitted on loopback):
+then the newcomer takes the rig over and the holder gets ``replaced``, so the real headset,
+opened from the printed URL, can always take the rig back from a squatter. A reconnect with
 the same ``client_id`` (the page keeps it in sessionStorage) replaces a half-dead old socket
-instead of being refused. A lost socket is noticed by aiohttp's heartbeat; the page shows
-"disconnected, reconnecting" and retries.
+instead of being refused (a tokenless one never replaces a token holder's). A lost socket is
+noticed by aiohttp's heartbeat; the page shows "disconnected, reconnecting" and retries.
 
 The hand-frame wire format (page → ingest) is :mod:`teleop.input.web_protocol`'s.
 
@@ -35,6 +46,7 @@ import logging
 import ssl
 import threading
 import time
+import urllib.parse
 import uuid
 from collections import Counter, deque
 from dataclasses import dataclass, field
@@ -47,17 +59,24 @@ import zenoh
 from aiohttp import WSMsgType, web
 
 from teleop import keys as zkeys
+from teleop.input.access import AccessPolicy, access_middleware, access_policy, clean_text, is_loopback
 from teleop.input.background_server import BackgroundServer, WebIngestError
-from teleop.input.tls import ensure_certificate
+from teleop.input.tls import ensure_certificate, local_addresses
 from teleop.input.web_protocol import parse_ws_frame
 from teleop.messages import MessageError, encode
 
-__all__ = ["PAGE_COMMANDS", "WebIngest", "WebIngestConfig"]
+__all__ = ["PAGE_ARGS", "PAGE_COMMANDS", "WebIngest", "WebIngestConfig"]
 
 logger = logging.getLogger(__name__)
 
 #: Control commands the page may send (the rest of the control API stays on zenoh).
 PAGE_COMMANDS = ("start_recording", "stop_recording", "mark_grasp", "reset_object")
+#: the arguments each page command may carry (anything else is refused, never forwarded): a
+#: remote caller names a recording, it never chooses a path or overwrites a file
+PAGE_ARGS: dict[str, tuple[str, ...]] = {"start_recording": ("name",)}
+#: the page's notice kinds (``app.js``) counted by name; any other is counted as ``other``
+NOTICE_KINDS = ("session_failed", "no_hand_tracking", "no_hands_tracked", "no_webxr",
+                "no_immersive_vr")
 _LOG_EVERY = 100
 
 
@@ -65,7 +84,11 @@ _LOG_EVERY = 100
 class WebIngestConfig:
     """Where and how the page is served.
 
-    ``host``/``port``: the HTTPS (or HTTP) listen address (port 0 picks a free one). ``tls``:
+    ``host``/``port``: the HTTPS (or HTTP) listen address (port 0 picks a free one; the
+    default host is loopback, ``0.0.0.0`` serves the LAN). ``token``: the access token to
+    require (None: a random one per start, required only off loopback; see
+    :mod:`teleop.input.access`). ``extra_hosts``: more names a request's Host header may use
+    (a DNS name of this machine the headset opens). ``tls``:
     serve HTTPS with ``cert_dir``'s certificate (:func:`ensure_certificate`). ``dev_static``:
     extra static folders served under ``/dev/<name>/`` — development and tests only (the IWER
     bundle and a capture for the emulated headset); empty in normal use. ``state_rate_hz``: how
@@ -74,8 +97,10 @@ class WebIngestConfig:
     a headset silent for about twice that is considered gone.
     """
 
-    host: str = "0.0.0.0"
+    host: str = "127.0.0.1"
     port: int = 8443
+    token: str | None = None
+    extra_hosts: tuple[str, ...] = ()
     tls: bool = True
     cert_dir: Path | None = None
     dev_static: dict[str, Path] = field(default_factory=dict)
@@ -89,8 +114,9 @@ class _Client:
     """The connected headset: its socket and what is waiting to be sent to it. Only the newest
     view JPEG is kept (a slow link skips frames instead of queueing seconds of video)."""
 
-    def __init__(self, ws: web.WebSocketResponse, client_id: str, peer: str) -> None:
-        self.ws, self.client_id, self.peer = ws, client_id, peer
+    def __init__(self, ws: web.WebSocketResponse, client_id: str, peer: str,
+                 has_token: bool) -> None:
+        self.ws, self.client_id, self.peer, self.has_token = ws, client_id, peer, has_token
         self.view: bytes | None = None
         self.texts: deque[str] = deque(maxlen=64)
         self.wake = asyncio.Event()
@@ -119,6 +145,10 @@ class WebIngest:
         self._next_state_s = 0.0
         self.port: int | None = None
         self.url: str | None = None
+        self._scheme = "https" if self.config.tls else "http"
+        #: this start's token and checks (module docstring)
+        self.access: AccessPolicy = access_policy(self.config.host, self.config.token,
+                                                  self.config.extra_hosts)
         self._own_session = session is None
         self.session = session or zkeys.open_session(listen_port, list(connect_ports))
         # reliable and blocking as replay: a recording must not lose frames to a busy moment
@@ -133,7 +163,7 @@ class WebIngest:
     # ------------------------------------------------------------------------------ lifecycle
 
     def _app(self) -> web.Application:
-        app = web.Application()
+        app = web.Application(middlewares=[access_middleware(self.access)])
         web_dir = resources.files("teleop.input") / "web"
         page = Path(str(web_dir))
         if not (page / "index.html").is_file():
@@ -167,17 +197,44 @@ class WebIngest:
         return ctx
 
     def start(self, timeout_s: float = 10.0) -> str:
-        """Serve in a background thread; returns the page URL (``https://localhost:<port>/``)."""
+        """Serve in a background thread; returns the page URL with this start's token
+        (``https://localhost:<port>/?token=…``; :meth:`page_urls` lists the LAN ones)."""
         ssl_ctx = self._ssl_context()
         app = self._app()
         self._server = BackgroundServer(app, self.config.host, self.config.port, ssl_ctx,
                                         task=self._status_poller)
         self._server.start(timeout_s)
         self.port = self._server.port
-        scheme = "https" if ssl_ctx is not None else "http"
-        self.url = f"{scheme}://localhost:{self.port}/"
-        logger.info("headset page on %s (WebSocket /ws) for rig %s", self.url, self.keys.rig)
+        self._scheme = "https" if ssl_ctx is not None else "http"
+        self.url = self.page_url()
+        if ssl_ctx is None and not is_loopback(self.config.host):
+            logger.warning("the headset page is plain HTTP on %s: its token crosses the network "
+                           "unencrypted (and a headset grants WebXR only to HTTPS or localhost)",
+                           self.config.host)
+        logger.info("headset page on %s (WebSocket /ws) for rig %s%s", " or ".join(self.page_urls()),
+                    self.keys.rig, "; the token is required" if self.access.required else "")
         return self.url
+
+    def page_url(self, host: str = "localhost", **params: str) -> str:
+        """The page's URL on ``host`` with this start's token and ``params`` (e.g.
+        ``emulate="quest3"``) in the query; only once :meth:`start` returned."""
+        if self.port is None:
+            raise WebIngestError("page_url: the page is not served yet (call start() first)")
+        query = urllib.parse.urlencode({"token": self.access.token, **params})
+        netloc = f"[{host}]" if ":" in host else host
+        return f"{self._scheme}://{netloc}:{self.port}/?{query}"
+
+    def page_urls(self) -> list[str]:
+        """Every URL a headset may open: localhost, and off loopback this machine's LAN
+        addresses (or the one address listened on), each with the token."""
+        host = self.config.host
+        if is_loopback(host):
+            hosts = ["localhost"]
+        elif host in ("", "0.0.0.0", "::"):
+            hosts = ["localhost", *(a for a in local_addresses() if not is_loopback(a))]
+        else:
+            hosts = [host]
+        return [self.page_url(h) for h in hosts]
 
     def close(self) -> None:
         """Stop serving (closing the headset's socket), undeclare, close an owned session."""
@@ -311,7 +368,7 @@ class WebIngest:
         except (ValueError, AttributeError) as exc:
             logger.warning("web client %s: bad hello (%s); closing", peer, exc)
             return None
-        return str(hello.get("client_id") or uuid.uuid4())
+        return clean_text(hello.get("client_id") or uuid.uuid4(), 64)
 
     async def _ws_handler(self, request: web.Request) -> web.WebSocketResponse:
         ws = web.WebSocketResponse(heartbeat=self.config.heartbeat_s, max_msg_size=1 << 20)
@@ -321,20 +378,18 @@ class WebIngest:
         if client_id is None:
             await ws.close(code=4400, message=b"no hello")
             return ws
+        has_token = self.access.token_ok(request.query.get("token"))
         old = self._client
-        if old is not None and old.client_id != client_id:
-            with self._lock:
-                self.counts["refused"] += 1
-            reason = (f"another headset ({old.peer}) is already connected to rig "
-                      f"{self.keys.rig!r}; only one at a time")
-            logger.warning("refused a second headset from %s: %s", peer, reason)
-            await ws.send_str(json.dumps({"type": "refused", "reason": reason}))
-            await ws.close(code=4409, message=b"another headset is connected")
-            return ws
         if old is not None:
-            logger.info("headset %s reconnected; closing its previous socket", peer)
-            await old.ws.close(code=4000, message=b"replaced by a new connection")
-        c = _Client(ws, client_id, peer)
+            if has_token and not old.has_token:
+                await self._take_over(old, peer)
+            elif old.client_id == client_id and (has_token or not old.has_token):
+                logger.info("headset %s reconnected; closing its previous socket", peer)
+                await old.ws.close(code=4000, message=b"replaced by a new connection")
+            else:
+                await self._refuse(ws, old, peer)
+                return ws
+        c = _Client(ws, client_id, peer, has_token)
         self._client = c
         with self._lock:
             self.counts["connections"] += 1
@@ -358,6 +413,28 @@ class WebIngest:
                 self._client = None
             logger.info("headset %s disconnected (close code %s)", peer, ws.close_code)
         return ws
+
+    async def _refuse(self, ws: web.WebSocketResponse, old: _Client, peer: str) -> None:
+        """Tell a second headset the rig is taken, and close it."""
+        with self._lock:
+            self.counts["refused"] += 1
+        reason = (f"another headset ({old.peer}) is already connected to rig "
+                  f"{self.keys.rig!r}; only one at a time")
+        logger.warning("refused a second headset from %s: %s", peer, reason)
+        await ws.send_str(json.dumps({"type": "refused", "reason": reason}))
+        await ws.close(code=4409, message=b"another headset is connected")
+
+    async def _take_over(self, old: _Client, peer: str) -> None:
+        """A client with the token displaces a tokenless holder (module docstring)."""
+        with self._lock:
+            self.counts["taken_over"] += 1
+        reason = (f"a headset with the access token ({peer}) took rig {self.keys.rig!r} over; "
+                  "open the URL the bridge printed to use it")
+        logger.warning("headset %s (with the token) took the rig over from %s (without it)",
+                       peer, old.peer)
+        with contextlib.suppress(ConnectionError, RuntimeError):
+            await old.ws.send_str(json.dumps({"type": "replaced", "reason": reason}))
+        await old.ws.close(code=4001, message=b"taken over by a headset with the token")
 
     def _on_frame(self, data: bytes) -> None:
         t0 = time.perf_counter()
@@ -385,23 +462,42 @@ class WebIngest:
             logger.warning("headset %s: unreadable text message %r", c.peer, text[:80])
             return
         if kind == "control":
-            command = str(msg.get("command"))
-            if command not in PAGE_COMMANDS:
-                result = {"ok": False, "error": f"unknown command {command!r}; one of "
-                                                 f"{list(PAGE_COMMANDS)}"}
+            command = clean_text(msg.get("command"), 40)
+            why = self._control_error(command, msg)
+            if why is not None:
+                result = {"ok": False, "error": why}
+                logger.warning("headset %s: refused control request: %s", c.peer, why)
             else:
-                args = msg.get("args") if isinstance(msg.get("args"), dict) else {}
-                result = await self._query(command, args)
+                result = await self._query(command, msg.get("args") or {})
                 logger.info("headset %s: %s → %s", c.peer, command,
-                            "ok" if result.get("ok") else result.get("error"))
+                            "ok" if result.get("ok") else clean_text(result.get("error")))
             await c.ws.send_str(json.dumps({"type": "control_reply", "command": command,
                                             "id": msg.get("id"), "result": result}))
         elif kind == "notice":
-            logger.warning("headset %s: %s", c.peer, str(msg.get("message"))[:300])
+            what = msg.get("what")
+            logger.warning("headset %s: %s", c.peer, clean_text(msg.get("message"), 300))
             with self._lock:
-                self.counts[f"notice_{str(msg.get('what', 'other'))[:40]}"] += 1
+                self.counts[f"notice_{what if what in NOTICE_KINDS else 'other'}"] += 1
         elif kind == "stats":
             with self._lock:
                 self.counts["page_stats"] += 1
         else:
-            logger.warning("headset %s: unknown message type %r", c.peer, kind)
+            logger.warning("headset %s: unknown message type %r", c.peer, clean_text(kind, 40))
+
+    def _control_error(self, command: str, msg: dict[str, Any]) -> str | None:
+        """Why the page's control request is not forwarded (None: forward it). Untrusted: the
+        token when required, a page command, only its :data:`PAGE_ARGS` (string values)."""
+        if self.access.required and not self.access.token_ok(msg.get("token")):
+            return f"{command}: no or a wrong access token"
+        if command not in PAGE_COMMANDS:
+            return f"unknown command {command!r}; one of {list(PAGE_COMMANDS)}"
+        args = msg.get("args") or {}
+        if not isinstance(args, dict):
+            return f"{command}: args must be a JSON object"
+        allowed = PAGE_ARGS.get(command, ())
+        extra = sorted(clean_text(k, 40) for k in args if k not in allowed)
+        if extra:
+            return f"{command}: argument(s) {extra} not accepted from the page (allowed: {list(allowed)})"
+        if not all(isinstance(v, str) for v in args.values()):
+            return f"{command}: argument values must be strings"
+        return None

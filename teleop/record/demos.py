@@ -123,6 +123,9 @@ def _track(session: Session, fingers: tuple[str, ...]) -> _Track:
     where = session.path
     for topic in (TOPIC_STATE, TOPIC_CONTACTS):
         if not session.counts.get(topic):
+            if session.truncated:
+                raise DemoError(f"{where}: no {topic} message survives: the file is "
+                                f"{session.cut_note}")
             raise DemoError(f"{where}: no {topic} messages; the session holds raw input only "
                             f"(record it through the bridge: `dexaug rerecord {where} OUT.mcap`)")
     states = session.json_messages(TOPIC_STATE)

@@ -7,18 +7,22 @@ a file that simply *ends early* (a killed recorder: expected, recoverable) from 
 record by record with mcap's own record parsers and classifies what it finds:
 
 - **complete**: header … data end, summary, footer, closing magic; every CRC checks.
-- **truncated**: the file stops early — mid-record, at a record boundary without a footer, or in
-  a run of zero bytes (a file system that extended the file but lost the data). Everything up to
-  the last complete chunk is kept; :attr:`Scan.truncated` is True and :attr:`Scan.stop_offset`
-  is the byte offset where reading stopped. No exception.
+- **truncated**: the file stops early — mid-record, at a record boundary without a footer, in
+  a run of zero bytes (a file system that extended the file but lost the data), or inside the
+  closing magic (a cut in the last 1–8 bytes: every record is there). Everything up to the last
+  complete chunk is kept; :attr:`Scan.truncated` is True and :attr:`Scan.stop_offset` is the
+  byte offset where reading stopped. No exception.
 - **corrupt**: a record that is all there but wrong — bad magic, unknown opcode, a length running
   past the end of a file that does have its footer, a chunk whose CRC, size, compression or time
   bounds do not check, a message index that disagrees with its chunk, a message on an unknown
   channel, a bad data-section or summary CRC. :class:`McapCorrupt` is raised with the byte
   offset of the record at fault and what was wrong (the session reader names the file).
 
+:func:`start_scan` and :func:`read_record` are the scan's steps, for
+:mod:`teleop.record.repair`'s salvage scan, which skips damage instead of raising.
+
 The scan keeps where the messages live (:class:`Block`: a chunk or a bare message record), so
-:func:`block_messages` can re-read them later without scanning again. Only the MCAP layer is
+the session reader can re-read them later without scanning again. Only the MCAP layer is
 here; what the channels mean is :mod:`teleop.record.schemas`'.
 """
 
@@ -45,8 +49,9 @@ from mcap.records import (
 )
 from mcap.stream_reader import get_chunk_data_stream
 
-__all__ = ["MAX_CHUNK_BYTES", "MCAP_MAGIC", "Block", "McapCorrupt", "Scan", "block_messages",
-           "scan_file"]
+__all__ = ["MAX_CHUNK_BYTES", "MCAP_MAGIC", "Block", "FileEndsEarly", "McapCorrupt", "Scan",
+           "Walk", "decompress_chunk", "parse_record", "read_record", "record_stream", "scan_file",
+           "start_scan"]
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 _RECORD_HEADER = struct.Struct("<BQ")  # opcode, content length
@@ -82,7 +87,8 @@ class _StrictBytes:
         return len(self._data) - self._pos
 
 
-def _stream(data: bytes) -> tuple[ReadDataStream, _StrictBytes]:
+def record_stream(data: bytes) -> tuple[ReadDataStream, _StrictBytes]:
+    """An mcap parser stream over ``data`` that fails on short reads, and its buffer."""
     raw = _StrictBytes(data)
     return ReadDataStream(raw), raw  # type: ignore[arg-type]
 
@@ -121,44 +127,17 @@ class Scan:
     truncated: bool = False
     stop_offset: int = 0
     truncation_reason: str = ""
+    #: complete records read at the top level of the file (chunks count as one)
+    records: int = 0
     # per-chunk message index the chunk's content implies, checked against MessageIndex records
     pending_index: dict[int, list[tuple[int, int]]] | None = None
     pending_chunk_offset: int = 0
 
 
-def block_messages(raw: bytes, is_chunk: bool) -> list[Message]:
-    """The messages of one :class:`Block` from its record bytes (header included), in file
-    order. Raises :class:`McapCorrupt` (offset 0: the caller knows the block's) when the bytes
-    no longer parse."""
-    _, length = _RECORD_HEADER.unpack_from(raw)
-    content = raw[9:9 + length]
-    try:
-        if is_chunk:
-            records = _chunk_messages(_decompress(Chunk.read(_stream(content)[0])))
-        else:
-            records = [(0, Message.read(_stream(content)[0], length))]
-    except Exception as exc:
-        raise McapCorrupt(0, str(exc)) from None
-    return [msg for _, msg in records]
-
-
-def _chunk_messages(data: bytes) -> list[tuple[int, Message]]:
-    """The messages of an uncompressed chunk with their offsets inside it (schemas and
-    channels are skipped: the scan already collected them)."""
-    out = []
-    pos, size = 0, len(data)
-    while pos < size:
-        opcode, length = _RECORD_HEADER.unpack_from(data, pos)
-        if opcode == Opcode.MESSAGE:
-            out.append((pos, Message.read(_stream(data[pos + 9:pos + 9 + length])[0], length)))
-        pos += 9 + length
-    return out
-
-
-def _parse(offset: int, opcode: int, content: bytes) -> Any:
+def parse_record(offset: int, opcode: int, content: bytes) -> Any:
     """Parse one record's content with mcap's parser, strictly (all fields present, nothing
     left over except where the spec allows trailing fields)."""
-    stream, raw = _stream(content)
+    stream, raw = record_stream(content)
     try:
         if opcode == Opcode.MESSAGE:
             return Message.read(stream, len(content))
@@ -178,7 +157,7 @@ def _parse(offset: int, opcode: int, content: bytes) -> Any:
     return record
 
 
-def _decompress(chunk: Chunk) -> bytes:
+def decompress_chunk(chunk: Chunk) -> bytes:
     """A chunk's uncompressed content, its CRC checked (mcap's own decompression)."""
     stream, size = get_chunk_data_stream(chunk, validate_crc=True)
     return stream.read(size) if size else b""
@@ -190,7 +169,7 @@ def _scan_chunk(scan: Scan, offset: int, chunk: Chunk) -> None:
     if chunk.uncompressed_size > MAX_CHUNK_BYTES:
         raise McapCorrupt(offset, f"chunk claims {chunk.uncompressed_size} uncompressed bytes")
     try:
-        data = _decompress(chunk)
+        data = decompress_chunk(chunk)
     except Exception as exc:  # zstd/lz4 errors, CRC mismatch: all mean damaged chunk data
         raise McapCorrupt(offset, f"chunk data does not decompress or check: {exc}") from None
     if len(data) != chunk.uncompressed_size:
@@ -206,7 +185,7 @@ def _scan_chunk(scan: Scan, offset: int, chunk: Chunk) -> None:
         end = pos + 9 + length
         if end > len(data):
             raise McapCorrupt(offset, f"record at chunk content offset {pos} runs past the chunk")
-        rec = _parse(offset, opcode, data[pos + 9:end]) if opcode in _KNOWN_OPCODES else None
+        rec = parse_record(offset, opcode, data[pos + 9:end]) if opcode in _KNOWN_OPCODES else None
         if isinstance(rec, Schema):
             _add_schema(scan, offset, rec)
         elif isinstance(rec, Channel):
@@ -279,103 +258,143 @@ def _all_zero(f: IO[bytes], start: int, size: int) -> bool:
     return True
 
 
-def scan_file(f: IO[bytes], size: int) -> Scan:
-    """Scan the open file ``f`` of ``size`` bytes (module docstring); raises
-    :class:`McapCorrupt` on damage."""
-    scan = Scan()
+class FileEndsEarly(Exception):
+    """The file ends early (truncation): ``reason`` says how; ``past_end``: a record's length
+    runs past the end (a damaged length field looks the same: a salvage scan reads on)."""
+
+    def __init__(self, reason: str, *, past_end: bool = False) -> None:
+        super().__init__(reason)
+        self.reason = reason
+        self.past_end = past_end
+
+
+@dataclass
+class Walk:
+    """A scan's position and running CRCs (a salvage scan past damage sets check_data_crc)."""
+
+    f: IO[bytes]
+    size: int
+    complete: bool
+    offset: int = 8
+    crc: int = zlib.crc32(MCAP_MAGIC)
+    check_data_crc: bool = True
+    in_summary: bool = False
+    summary_start: int = 0
+    summary_crc: int = 0
+
+
+def start_scan(f: IO[bytes], size: int) -> tuple[Scan, Walk]:
+    """An empty :class:`Scan`, a :class:`Walk` at the first record; checks the magic."""
     f.seek(0)
     magic = f.read(8)
     if magic != MCAP_MAGIC:
         what = "empty file (0 bytes)" if size == 0 else f"magic {magic!r}"
         raise McapCorrupt(0, f"not an MCAP file: {what}, expected {MCAP_MAGIC!r}")
-    complete = _ends_like_closed(f, size)
-    crc = zlib.crc32(MCAP_MAGIC)
-    offset = 8
-    in_summary = False
-    summary_start = 0
-    summary_crc = 0
-    f.seek(offset)
+    return Scan(), Walk(f, size, _ends_like_closed(f, size))
 
-    def truncate(reason: str) -> Scan:
+
+def scan_file(f: IO[bytes], size: int) -> Scan:
+    """Scan the open file ``f`` of ``size`` bytes (module docstring); McapCorrupt on damage."""
+    scan, walk = start_scan(f, size)
+    try:
+        while read_record(scan, walk):
+            pass
+    except FileEndsEarly as stop:
         scan.truncated = True
-        scan.stop_offset = offset
-        scan.truncation_reason = reason
-        return scan
-
-    while True:
-        if offset == size:
-            if complete:
-                raise McapCorrupt(offset, "no footer before the end of the file")
-            return truncate("the file ends without a footer (the recorder did not close it)")
-        head = f.read(9)
-        if len(head) < 9:
-            if complete:
-                raise McapCorrupt(offset, "record header runs past the end of the file")
-            return truncate(f"the file ends inside a record header ({len(head)} of 9 bytes)")
-        opcode, length = _RECORD_HEADER.unpack(head)
-        if opcode == 0 and length == 0 and not complete and _all_zero(f, offset, size):
-            return truncate(f"the last {size - offset} bytes are zeros (data never written)")
-        if opcode not in _KNOWN_OPCODES:
-            raise McapCorrupt(offset, f"unknown record opcode {opcode:#04x}")
-        if offset == 8 and opcode != Opcode.HEADER:
-            raise McapCorrupt(offset, f"first record is {Opcode(opcode).name}, expected HEADER")
-        if length > size - offset - 9:
-            if complete:
-                raise McapCorrupt(offset, f"{Opcode(opcode).name} record claims {length} bytes, "
-                                       f"past the end of the file ({size} bytes)")
-            return truncate(f"the {Opcode(opcode).name} record at the end is incomplete "
-                            f"({size - offset - 9} of {length} bytes)")
-        content = f.read(length)
-        rec = _parse(offset, opcode, content)
-        if opcode == Opcode.HEADER and offset != 8:
-            raise McapCorrupt(offset, "a second HEADER record")
-        if opcode == Opcode.FOOTER:
-            footer: Footer = rec
-            if footer.summary_start not in (0, summary_start) or not in_summary:
-                raise McapCorrupt(offset, f"footer's summary start {footer.summary_start} does not "
-                                       f"match the data end (summary at {summary_start})")
-            summary_crc = zlib.crc32(head + content[:16], summary_crc)
-            if footer.summary_crc and footer.summary_crc != summary_crc:
-                raise McapCorrupt(offset, f"summary CRC mismatch: footer says "
-                                       f"{footer.summary_crc:#010x}, bytes give "
-                                       f"{summary_crc:#010x} (summary at offset {summary_start})")
-            end = offset + 9 + length
-            f.seek(end)
-            if f.read(8) != MCAP_MAGIC or end + 8 != size:
-                raise McapCorrupt(end, "footer not followed by the closing magic at the end of the "
-                                    "file")
-            scan.stop_offset = size
-            return scan
-        if in_summary:
-            summary_crc = zlib.crc32(content, zlib.crc32(head, summary_crc))
-        elif opcode == Opcode.DATA_END:
-            data_end: DataEnd = rec
-            if data_end.data_section_crc and data_end.data_section_crc != crc:
-                raise McapCorrupt(offset, f"data section CRC mismatch (bytes 0 to {offset}): the "
-                                       f"file says {data_end.data_section_crc:#010x}, its bytes "
-                                       f"give {crc:#010x}")
-            in_summary = True
-            summary_start = offset + 9 + length
-        else:
-            crc = zlib.crc32(content, zlib.crc32(head, crc))
-            if isinstance(rec, Chunk):
-                _scan_chunk(scan, offset, rec)
-                scan.blocks.append(Block(offset, 9 + length, is_chunk=True))
-            elif isinstance(rec, MessageIndex):
-                _check_message_index(scan, offset, rec)
-            elif isinstance(rec, Header):
-                scan.header = rec
-            elif isinstance(rec, Schema):
-                _add_schema(scan, offset, rec)
-            elif isinstance(rec, Channel):
-                _add_channel(scan, offset, rec)
-            elif isinstance(rec, Message):
-                _count_message(scan, offset, rec)
-                scan.blocks.append(Block(offset, 9 + length, is_chunk=False))
-            elif isinstance(rec, Metadata):
-                scan.metadata[rec.name] = dict(rec.metadata)
-            if not isinstance(rec, Chunk | MessageIndex):
-                scan.pending_index = None
-        offset += 9 + length
+        scan.truncation_reason = stop.reason
+    scan.stop_offset = walk.offset
+    return scan
 
 
+def read_record(scan: Scan, walk: Walk) -> bool:
+    """Read the record at ``walk.offset`` into ``scan`` and advance; False when the file has
+    been read to its end (footer and closing magic). Raises :class:`FileEndsEarly` when the
+    file ends early, :class:`McapCorrupt` on damage (``walk.offset`` is then the record's)."""
+    f, size, offset, complete = walk.f, walk.size, walk.offset, walk.complete
+    if offset == size:
+        if complete:
+            raise McapCorrupt(offset, "no footer before the end of the file")
+        raise FileEndsEarly("the file ends without a footer (the recorder did not close it)")
+    f.seek(offset)
+    head = f.read(9)
+    if len(head) < 9:
+        if complete:
+            raise McapCorrupt(offset, "record header runs past the end of the file")
+        raise FileEndsEarly(f"the file ends inside a record header ({len(head)} of 9 bytes)")
+    opcode, length = _RECORD_HEADER.unpack(head)
+    if opcode == 0 and length == 0 and not complete and _all_zero(f, offset, size):
+        raise FileEndsEarly(f"the file ends at {size - offset} bytes of zeros (data never "
+                            "written)")
+    if opcode not in _KNOWN_OPCODES:
+        raise McapCorrupt(offset, f"unknown record opcode {opcode:#04x}")
+    if offset == 8 and opcode != Opcode.HEADER:
+        raise McapCorrupt(offset, f"first record is {Opcode(opcode).name}, expected HEADER")
+    if length > size - offset - 9:
+        if complete:
+            raise McapCorrupt(offset, f"{Opcode(opcode).name} record claims {length} bytes, "
+                                   f"past the end of the file ({size} bytes)")
+        raise FileEndsEarly(f"the {Opcode(opcode).name} record at the end is incomplete "
+                            f"({size - offset - 9} of {length} bytes)", past_end=True)
+    f.seek(offset + 9)
+    content = f.read(length)
+    rec = parse_record(offset, opcode, content)
+    if opcode == Opcode.HEADER and offset != 8:
+        raise McapCorrupt(offset, "a second HEADER record")
+    end = offset + 9 + length
+    if opcode == Opcode.FOOTER:
+        _check_footer(walk, rec, head, content)
+        scan.records += 1
+        f.seek(end)
+        tail = f.read(9)
+        walk.offset = end
+        if tail == MCAP_MAGIC:
+            walk.offset = size
+            return False
+        if len(tail) < 8 and MCAP_MAGIC.startswith(tail):
+            raise FileEndsEarly(f"the file ends inside the closing magic ({len(tail)} of 8 "
+                                "bytes; every record is complete)")
+        raise McapCorrupt(end, "footer not followed by the closing magic at the end of the file")
+    if walk.in_summary:
+        walk.summary_crc = zlib.crc32(content, zlib.crc32(head, walk.summary_crc))
+    elif opcode == Opcode.DATA_END:
+        data_end: DataEnd = rec
+        if walk.check_data_crc and data_end.data_section_crc not in (0, walk.crc):
+            raise McapCorrupt(offset, f"data section CRC mismatch (bytes 0 to {offset}): the "
+                                   f"file says {data_end.data_section_crc:#010x}, its bytes "
+                                   f"give {walk.crc:#010x}")
+        walk.in_summary = True
+        walk.summary_start = end
+    else:
+        walk.crc = zlib.crc32(content, zlib.crc32(head, walk.crc))
+        if isinstance(rec, Chunk):
+            _scan_chunk(scan, offset, rec)
+            scan.blocks.append(Block(offset, 9 + length, is_chunk=True))
+        elif isinstance(rec, MessageIndex):
+            _check_message_index(scan, offset, rec)
+        elif isinstance(rec, Header):
+            scan.header = rec
+        elif isinstance(rec, Schema):
+            _add_schema(scan, offset, rec)
+        elif isinstance(rec, Channel):
+            _add_channel(scan, offset, rec)
+        elif isinstance(rec, Message):
+            _count_message(scan, offset, rec)
+            scan.blocks.append(Block(offset, 9 + length, is_chunk=False))
+        elif isinstance(rec, Metadata):
+            scan.metadata[rec.name] = dict(rec.metadata)
+        if not isinstance(rec, Chunk | MessageIndex):
+            scan.pending_index = None
+    scan.records += 1
+    walk.offset = end
+    return True
+
+
+def _check_footer(walk: Walk, footer: Footer, head: bytes, content: bytes) -> None:
+    if footer.summary_start not in (0, walk.summary_start) or not walk.in_summary:
+        raise McapCorrupt(walk.offset, f"footer's summary start {footer.summary_start} does not "
+                                       f"match the data end (summary at {walk.summary_start})")
+    crc = zlib.crc32(head + content[:16], walk.summary_crc)
+    if footer.summary_crc and footer.summary_crc != crc:
+        raise McapCorrupt(walk.offset, f"summary CRC mismatch: footer says "
+                                       f"{footer.summary_crc:#010x}, bytes give {crc:#010x} "
+                                       f"(summary at offset {walk.summary_start})")

@@ -30,6 +30,10 @@ of data. Data handed to the OS survives the process; surviving a power cut also 
 for tens of milliseconds on slow disks; :meth:`close` always syncs). The checks run when a
 message is written, so a loop that stops writing should call :meth:`flush`.
 
+Write errors (a full disk, any OSError): the recording stops, cut back to its last complete
+chunk (:mod:`teleop.record.session_file`); that write, every later one and :meth:`close` raise
+:class:`~teleop.record.session_file.RecordingFailed`.
+
 Timestamps: every ``write_*`` takes ``log_time_ns`` (nanoseconds; default ``time.time_ns()``,
 Unix epoch, which Foxglove displays as dates). The JSON payloads' ``t_s`` is the caller's clock
 of the record — the bridge passes its simulated time, the same for the ``/state``,
@@ -59,8 +63,9 @@ from teleop.record.contact_record import ContactRecord
 from teleop.record.foxglove import FrameTransform
 from teleop.record.metadata import encode_metadata, session_metadata
 from teleop.record.session import SessionError
+from teleop.record.session_file import RecordingFailed, SessionFile
 
-__all__ = ["RecorderStats", "SessionRecorder"]
+__all__ = ["RecorderStats", "RecordingFailed", "SessionRecorder"]
 
 log = logging.getLogger(__name__)
 
@@ -148,36 +153,35 @@ class SessionRecorder:
         self._chunk_first_log_ns = 0
         self._sequence: Counter[str] = Counter()
 
-        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._out = SessionFile(self.path, overwrite=overwrite)
+        self._file = self._out.stream
         try:
-            self._file = open(self.path, "wb" if overwrite else "xb")  # noqa: SIM115
-        except FileExistsError:
-            raise SessionError(f"{self.path}: a recording already exists there (pass "
-                               "overwrite=True to replace it)") from None
-        except OSError as exc:
-            raise SessionError(f"{self.path}: cannot create the recording: {exc.strerror}"
-                               ) from None
-        # Chunk boundaries are ours (size and time), so the writer's own size trigger is off:
-        # every chunk then goes through flush(), which also hands the bytes to the OS.
-        self._writer = Writer(self._file, chunk_size=1 << 62,
-                              compression=_COMPRESSION[compression], enable_data_crcs=True)
-        dexaug_version = self.metadata["dexaug_version"]
-        self._writer.start(profile="", library=f"dexaug/{dexaug_version} {LIBRARY_IDENTIFIER}")
-        self._channel_ids: dict[str, int] = {}
-        for spec in schemas.CHANNELS:
-            if spec.optional and not (spec.topic == schemas.TOPIC_VIEW and self.record_view):
-                continue
-            schema_id = self._writer.register_schema(spec.schema_name, spec.schema_encoding,
-                                                     spec.schema_data)
-            self._channel_ids[spec.topic] = self._writer.register_channel(
-                spec.topic, spec.message_encoding, schema_id,
-                {"description": spec.description})
-        self._writer.add_metadata(schemas.METADATA_NAME, metadata_record)
-        self._file.flush()
+            # Chunk boundaries are ours (size and time), so the writer's own size trigger is
+            # off: every chunk then goes through flush(), which also hands the bytes to the OS.
+            self._writer = Writer(self._file, chunk_size=1 << 62,
+                                  compression=_COMPRESSION[compression], enable_data_crcs=True)
+            dexaug_version = self.metadata["dexaug_version"]
+            self._writer.start(profile="", library=f"dexaug/{dexaug_version} {LIBRARY_IDENTIFIER}")
+            self._channel_ids: dict[str, int] = {}
+            for spec in schemas.CHANNELS:
+                if spec.optional and not (spec.topic == schemas.TOPIC_VIEW and self.record_view):
+                    continue
+                schema_id = self._writer.register_schema(spec.schema_name, spec.schema_encoding,
+                                                         spec.schema_data)
+                self._channel_ids[spec.topic] = self._writer.register_channel(
+                    spec.topic, spec.message_encoding, schema_id,
+                    {"description": spec.description})
+            self._writer.add_metadata(schemas.METADATA_NAME, metadata_record)
+            self._file.flush()
+            self._out.mark_good()
+            self._write_event_unchecked("recording_started", {"path": str(self.path)},
+                                        None, self.start_time_ns)
+        except (OSError, RecordingFailed) as exc:  # nothing recorded yet: leave no stub behind
+            self._out.discard()
+            why = exc.strerror if isinstance(exc, OSError) else self._out.reason
+            raise SessionError(f"{self.path}: cannot write the recording: {why}") from None
         log.info("recording %s (chunks ≤ %d B or %.2f s, %s)", self.path, self.chunk_size,
                  self.flush_interval_s, compression)
-        self._write_event_unchecked("recording_started", {"path": str(self.path)},
-                                    None, self.start_time_ns)
 
     # --- core -------------------------------------------------------------------------------------
 
@@ -194,6 +198,8 @@ class SessionRecorder:
 
     def _add(self, topic: str, data: bytes, log_time_ns: int) -> None:
         """Append one message (lock held by the caller) and apply the flush policy."""
+        if self._out.failure:
+            raise RecordingFailed(self._out.failure)
         if self._closed:
             raise SessionError(f"{self.path}: the recorder is closed")
         if not self._pending_topics:
@@ -215,20 +221,21 @@ class SessionRecorder:
         if not self._pending_topics:
             return
         t0 = time.perf_counter()
-        self._writer.flush()  # compresses the chunk, writes it + its message index, flushes
-        if self.fsync:
-            os.fsync(self._file.fileno())
+        with self._out.guard():
+            self._writer.flush()  # compresses the chunk, writes it + its message index, flushes
+            if self.fsync:
+                os.fsync(self._file.fileno())
         self.stats.flush_time_s += time.perf_counter() - t0
         self.stats.chunks += 1
         self.stats.flushed.update(self._pending_topics)
-        self.stats.bytes_on_disk = self._file.tell()
+        self.stats.bytes_on_disk = self._out.mark_good()
         self._pending_topics.clear()
         self._pending_bytes = 0
 
     def flush(self) -> None:
         """Write the chunk in progress now (a loop that goes idle calls this)."""
         with self._lock:
-            if not self._closed:
+            if not self.closed:
                 self._flush_locked()
 
     # --- channels ---------------------------------------------------------------------------------
@@ -361,20 +368,22 @@ class SessionRecorder:
 
     @property
     def closed(self) -> bool:
-        return self._closed
+        return self._closed or self._out.failure is not None
 
     def close(self, *, reason: str = "closed") -> None:
         """Write ``recording_stopped``, the last chunk, the summary and footer; sync and close
-        the file. Idempotent."""
+        the file. Idempotent (a failed recording is closed already: nothing to do); raises
+        :class:`RecordingFailed` when these last writes fail."""
         with self._lock:
-            if self._closed:
+            if self._closed or self._out.failure:
                 return
             try:
                 t = time.time_ns() if self._own_clock else self._last_log_ns
                 self._write_event_unchecked("recording_stopped", {"reason": reason}, None, t)
-                self._writer.finish()
-                self._file.flush()
-                os.fsync(self._file.fileno())
+                with self._out.guard():
+                    self._writer.finish()
+                    self._file.flush()
+                    os.fsync(self._file.fileno())
                 self.stats.bytes_on_disk = self._file.tell()
             finally:
                 self._closed = True

@@ -15,16 +15,18 @@ the sender side (the bridge itself keeps only the latest unless it runs in deter
 from __future__ import annotations
 
 import logging
+import math
 import time
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 import zenoh
 
+from sim.errors import ConfigError
 from teleop import keys as zkeys
 from teleop.messages import HandFrame, encode
 from teleop.record.schemas import TOPIC_HANDS
-from teleop.record.session import open_session
+from teleop.record.session import SessionError, open_session
 
 logger = logging.getLogger(__name__)
 
@@ -46,10 +48,20 @@ def hands_publisher(session: zenoh.Session, rig: str, wait_for_subscriber_s: flo
     return pub
 
 
+def check_rate(rate: float | str) -> None:
+    """Raise :class:`ConfigError` unless ``rate`` is ``"max"`` or a finite number > 0 (checked
+    before anything connects or loads, so a bad ``--rate`` is a one-line error)."""
+    if rate == "max":
+        return
+    if isinstance(rate, bool) or not isinstance(rate, int | float) or not (
+            math.isfinite(rate) and rate > 0):
+        raise ConfigError(f"replay rate: expected a finite number > 0 (1.0: original speed) or "
+                          f"'max', got {rate!r}")
+
+
 def play(pub: zenoh.Publisher, items: Iterable[tuple[float, bytes]], rate: float | str) -> int:
     """Publish (time_s, payload) pairs with the timing of ``rate``; returns the count."""
-    if rate != "max" and (not isinstance(rate, (int, float)) or rate <= 0):
-        raise ValueError(f"rate must be a positive number or 'max', got {rate!r}")
+    check_rate(rate)
     n = 0
     t0_wall = t0_msg = None
     for t_s, payload in items:
@@ -68,8 +80,20 @@ def replay(path: Path | str, session: zenoh.Session, rig: str, rate: float | str
            wait_for_subscriber_s: float = 5.0) -> int:
     """Publish the ``/hands`` messages of the recording at ``path`` on ``dexaug/<rig>/hands``
     (raw bytes, original order; timing from the MCAP log times scaled by ``rate``, or ``"max"``).
-    Returns the number of messages published."""
+    Returns the number of messages published.
+
+    Raises:
+        ConfigError: ``rate`` is not a number > 0 or "max".
+        SessionError: the recording cannot be read or holds no ``/hands`` message (nothing to
+            replay: a session written by a script or a trajectory import has only ``/state``;
+            for a truncated file the message says where it was cut).
+    """
+    check_rate(rate)
     sess = open_session(path)
+    if not sess.counts.get(TOPIC_HANDS):
+        cut = f"; the file is {sess.cut_note}" if sess.truncated else (
+            " (it was not recorded from hand tracking: nothing to replay)")
+        raise SessionError(f"{path}: no {TOPIC_HANDS} messages{cut}")
     items = ((m.log_time_ns * 1e-9, m.data)
              for m in sess.messages(TOPIC_HANDS, decode=False))
     pub = hands_publisher(session, rig, wait_for_subscriber_s)

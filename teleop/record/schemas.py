@@ -86,7 +86,7 @@ FRAME_OBJECT = "object"
 #: Event types on ``/events``. ``recording_started``/``recording_stopped`` are written by the
 #: recorder itself; the others by the bridge (operator actions).
 EVENT_TYPES: tuple[str, ...] = ("recording_started", "recording_stopped", "grasp_mark",
-                                "object_changed", "object_reset")
+                                "object_changed", "object_reset", "scene_restored")
 
 HANDS_SCHEMA_NAME = "dexaug.HandFrame"
 HANDS_SCHEMA_ENCODING = "dexaug-layout"

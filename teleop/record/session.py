@@ -17,8 +17,12 @@ so every byte of a complete file is covered by some check.
 
 Messages are yielded in file order, which is the order the recorder wrote them (log times per
 topic non-decreasing when the caller's clock is). Payloads are decoded by topic: ``/hands`` to
-:class:`teleop.messages.HandFrame`, JSON topics to dicts, anything else left as bytes.
-:func:`repair_session` rewrites a truncated file as a complete, indexed one.
+:class:`teleop.messages.HandFrame`, JSON topics to dicts, anything else left as bytes. A
+``/state``, ``/contacts`` or ``/events`` payload that lacks a field its schema requires (or has
+a vector of the wrong length) raises :class:`SessionError` naming the message and the field, so
+consumers never meet a ``KeyError`` deep inside (``t_s`` may be absent: older recordings did not
+write it). :func:`repair_session` rewrites a truncated file as a complete, indexed one;
+:mod:`teleop.record.repair` (``dexaug repair``) also salvages around damage.
 """
 
 from __future__ import annotations
@@ -26,21 +30,28 @@ from __future__ import annotations
 import json
 import logging
 import os
-from collections.abc import Iterable, Iterator
+import struct
+from collections import Counter
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from mcap.opcode import Opcode
+from mcap.records import Chunk, Message
+
 from sim.errors import DexaugError
 from teleop import messages as hand_messages
 from teleop.record import schemas
-from teleop.record.mcap_scan import McapCorrupt, Scan, block_messages, scan_file
+from teleop.record.mcap_scan import McapCorrupt, Scan, decompress_chunk, record_stream, scan_file
 from teleop.record.metadata import decode_metadata
 
-__all__ = ["ChannelInfo", "Session", "SessionError", "SessionMessage", "open_session",
-           "repair_session"]
+__all__ = ["ChannelInfo", "Session", "SessionError", "SessionMessage", "block_messages",
+           "open_session", "repair_session", "scan_found", "write_indexed_copy"]
 
 log = logging.getLogger(__name__)
+
+RECORD_HEADER = struct.Struct("<BQ")  # opcode, content length
 
 
 class SessionError(DexaugError):
@@ -82,7 +93,7 @@ class Session:
     / ``end_time_ns`` (log times, None when empty); ``truncated`` (the recorder did not close
     the file); ``stop_offset`` (byte offset where reading stopped: the file size when complete,
     else the start of the first incomplete record); ``file_size`` (bytes); ``library`` and
-    ``profile`` (the MCAP header's).
+    ``profile`` (the MCAP header's); ``truncation_reason`` (how the file ends, when truncated).
     """
 
     def __init__(self, path: Path, scan: Scan, file_size: int) -> None:
@@ -91,6 +102,7 @@ class Session:
         self.file_size = file_size
         self.truncated = scan.truncated
         self.stop_offset = scan.stop_offset
+        self.truncation_reason = scan.truncation_reason
         self.library = scan.header.library if scan.header else ""
         self.profile = scan.header.profile if scan.header else ""
         self.channels: dict[str, ChannelInfo] = {}
@@ -124,6 +136,17 @@ class Session:
         return (self.end_time_ns - self.start_time_ns) * 1e-9
 
     @property
+    def cut_note(self) -> str:
+        """Where a truncated file was cut and what was read before it, for messages ("" when
+        complete): ``"truncated at byte 1234 of 5000 (the CHUNK record at the end is incomplete
+        (100 of 300 bytes)); 5 complete records (2 chunks, 40 messages) were read before the
+        cut"``."""
+        if not self.truncated:
+            return ""
+        return (f"truncated at byte {self.stop_offset} of {self.file_size} "
+                f"({self.truncation_reason}); {scan_found(self._scan)} were read before the cut")
+
+    @property
     def joint_names(self) -> list[str]:
         """The hand's joint names, the order of ``/state`` qpos (empty when not recorded)."""
         return list(self.metadata.get("joint_names", []))
@@ -136,6 +159,7 @@ class Session:
         if topics is not None:
             names = {topics} if isinstance(topics, str) else set(topics)
             wanted = {cid for cid, t in self._topic_by_id.items() if t in names}
+        index: Counter[str] = Counter()
         with open(self.path, "rb") as f:
             for block in self._scan.blocks:
                 f.seek(block.offset)
@@ -149,7 +173,11 @@ class Session:
                     if wanted is not None and msg.channel_id not in wanted:
                         continue
                     topic = self._topic_by_id[msg.channel_id]
-                    payload = self._decode(topic, msg.data, block.offset) if decode else None
+                    index[topic] += 1
+                    payload = None
+                    if decode:
+                        payload = self._decode(topic, msg.data, block.offset)
+                        self._check_fields(topic, payload, index[topic], msg.log_time)
                     yield SessionMessage(topic, msg.log_time, msg.publish_time, msg.sequence,
                                          msg.data, payload)
 
@@ -165,6 +193,18 @@ class Session:
                                f"{offset}: {exc}") from None
         return data
 
+    def _check_fields(self, topic: str, payload: Any, number: int, log_time_ns: int) -> None:
+        """Raise :class:`SessionError` when a payload of one of our schemas lacks what its
+        schema requires (module docstring); ``number`` counts the topic's messages from 1."""
+        schema = _REQUIRED_SCHEMAS.get(topic)
+        if schema is None:
+            return
+        problem = _schema_problem(schema, payload, "")
+        if problem is not None:
+            at_s = (log_time_ns - (self.start_time_ns or log_time_ns)) * 1e-9
+            raise SessionError(f"{self.path}: {topic} message {number} (at {at_s:.3f} s) "
+                               f"{problem} (schema {schema.get('title', topic)})")
+
     def hands(self) -> Iterator[tuple[int, hand_messages.HandFrame]]:
         """(log time ns, HandFrame) of every ``/hands`` message."""
         for m in self.messages(schemas.TOPIC_HANDS):
@@ -179,6 +219,87 @@ class Session:
     def events(self) -> list[tuple[int, dict[str, Any]]]:
         """(log time ns, event) of every ``/events`` message."""
         return self.json_messages(schemas.TOPIC_EVENTS)
+
+
+def block_messages(raw: bytes, is_chunk: bool) -> list[Message]:
+    """The messages of one :class:`Block` from its record bytes (header included), in file
+    order. Raises :class:`McapCorrupt` (offset 0: the caller knows the block's) when the bytes
+    no longer parse."""
+    _, length = RECORD_HEADER.unpack_from(raw)
+    content = raw[9:9 + length]
+    try:
+        if is_chunk:
+            records = _chunk_messages(decompress_chunk(Chunk.read(record_stream(content)[0])))
+        else:
+            records = [(0, Message.read(record_stream(content)[0], length))]
+    except Exception as exc:
+        raise McapCorrupt(0, str(exc)) from None
+    return [msg for _, msg in records]
+
+
+def _chunk_messages(data: bytes) -> list[tuple[int, Message]]:
+    """The messages of an uncompressed chunk with their offsets inside it (schemas and
+    channels are skipped: the scan already collected them)."""
+    out = []
+    pos, size = 0, len(data)
+    while pos < size:
+        opcode, length = RECORD_HEADER.unpack_from(data, pos)
+        if opcode == Opcode.MESSAGE:
+            out.append((pos, Message.read(record_stream(data[pos + 9:pos + 9 + length])[0], length)))
+        pos += 9 + length
+    return out
+
+
+
+def scan_found(scan: Scan) -> str:
+    """What a scan read, for messages: ``"12 complete records (3 chunks, 250 messages)"``."""
+    def count(n: int, noun: str) -> str:
+        return f"{n} {noun}" + ("" if n == 1 else "s")
+
+    chunks = sum(b.is_chunk for b in scan.blocks)
+    return (f"{count(scan.records, 'complete record')} ({count(chunks, 'chunk')}, "
+            f"{count(sum(scan.counts.values()), 'message')})")
+
+
+#: The payload schemas checked on decoding (ours; Foxglove's require nothing).
+_REQUIRED_SCHEMAS: dict[str, dict[str, Any]] = {
+    schemas.TOPIC_STATE: schemas.STATE_SCHEMA, schemas.TOPIC_CONTACTS: schemas.CONTACTS_SCHEMA,
+    schemas.TOPIC_EVENTS: schemas.EVENT_SCHEMA}
+#: Required by the schemas but absent from recordings made before they were written.
+_OPTIONAL_IN_OLD_FILES = frozenset({"t_s"})
+
+
+def _schema_problem(schema: dict[str, Any], value: Any, where: str) -> str | None:
+    """What ``value`` lacks of ``schema`` (required keys, array lengths, recursively through
+    objects and array items), or None. The subset of JSON Schema our schemas use."""
+    kind = schema.get("type")
+    if value is None:
+        return None if isinstance(kind, list) and "null" in kind else f"has {where!r} = null"
+    if kind == "object":
+        if not isinstance(value, dict):
+            return f"has {where or 'a payload'} that is {type(value).__name__}, not an object"
+        for key in schema.get("required", ()):
+            if key not in value and key not in _OPTIONAL_IN_OLD_FILES:
+                return f"has no {where + key!r} field"
+        for key, sub in schema.get("properties", {}).items():
+            if key in value:
+                problem = _schema_problem(sub, value[key], f"{where}{key}")
+                if problem is not None:
+                    return problem
+    elif kind == "array":
+        if not isinstance(value, list):
+            return f"has {where!r} that is {type(value).__name__}, not a list"
+        lo, hi = schema.get("minItems", 0), schema.get("maxItems", len(value))
+        if not lo <= len(value) <= hi:
+            want = lo if lo == hi else f"{lo} to {hi}"
+            return f"has {where!r} with {len(value)} values, expected {want}"
+        items = schema.get("items", {})
+        if items.get("type") == "object":
+            for i, item in enumerate(value):
+                problem = _schema_problem(items, item, f"{where}[{i}].")
+                if problem is not None:
+                    return problem
+    return None
 
 
 def open_session(path: Path | str) -> Session:
@@ -209,36 +330,57 @@ def open_session(path: Path | str) -> Session:
         raise SessionError(f"{path}: recorded with session format {version}, this dexaug reads "
                            f"format {schemas.FORMAT_VERSION} and older; upgrade dexaug")
     if scan.truncated:
-        log.warning("%s: recording truncated at byte offset %d of %d (%s); read %d messages up "
-                    "to the last complete chunk", path, scan.stop_offset, size,
-                    scan.truncation_reason, sum(scan.counts.values()))
+        log.warning("%s: recording truncated at byte offset %d of %d (%s); read %s up to the "
+                    "cut", path, scan.stop_offset, size, scan.truncation_reason, scan_found(scan))
     return session
 
 
-def repair_session(src: Path | str, dst: Path | str) -> Session:
-    """Rewrite the readable part of a (truncated) recording as a complete, indexed MCAP file at
-    ``dst`` (tools that need the summary, e.g. seeking in Foxglove, then work on it). Raises
-    :class:`SessionError` when ``src`` is damaged rather than truncated."""
+def write_indexed_copy(out: Path, src: Path, scan: Scan,
+                       extra_metadata: Mapping[str, Mapping[str, str]] | None = None
+                       ) -> Counter[str]:
+    """Write what ``scan`` found in ``src`` — header, schemas, channels, metadata records (plus
+    ``extra_metadata``) and every message of its blocks, in file order — to ``out`` as a
+    closed, indexed MCAP file; returns the messages written per topic. Raises
+    :class:`SessionError` when a block no longer reads as scanned."""
     from mcap.writer import CompressionType, Writer
 
+    written: Counter[str] = Counter()
+    with open(src, "rb") as f_in, open(out, "wb") as f_out:
+        writer = Writer(f_out, compression=CompressionType.ZSTD, enable_data_crcs=True)
+        header = scan.header
+        writer.start(profile=header.profile if header else "",
+                     library=header.library if header else "dexaug")
+        schema_ids = {sid: writer.register_schema(s.name, s.encoding, s.data)
+                      for sid, s in scan.schemas.items()}
+        channel_ids = {cid: writer.register_channel(c.topic, c.message_encoding,
+                                                    schema_ids.get(c.schema_id, 0),
+                                                    dict(c.metadata))
+                       for cid, c in scan.channels.items()}
+        for name, record in {**scan.metadata, **(extra_metadata or {})}.items():
+            writer.add_metadata(name, dict(record))
+        for block in scan.blocks:
+            f_in.seek(block.offset)
+            try:
+                messages = block_messages(f_in.read(block.length), block.is_chunk)
+            except McapCorrupt as exc:
+                raise SessionError(f"{src}: the record at byte {block.offset} changed since it "
+                                   f"was read: {exc.reason}") from None
+            for msg in messages:
+                writer.add_message(channel_ids[msg.channel_id], msg.log_time, msg.data,
+                                   msg.publish_time, msg.sequence)
+                written[scan.channels[msg.channel_id].topic] += 1
+        writer.finish()
+    return written
+
+
+def repair_session(src: Path | str, dst: Path | str) -> Session:
+    """Rewrite a truncated recording as a complete, indexed MCAP file at ``dst`` (tools that
+    need the summary, e.g. seeking in Foxglove, then work on it) and open it. Raises
+    :class:`SessionError` when ``src`` is damaged rather than truncated: salvaging around
+    damage is :func:`teleop.record.repair.repair` (``dexaug repair``)."""
     from sim.io import atomic_path
 
     session = open_session(src)
-    with atomic_path(dst) as tmp, open(tmp, "wb") as out:
-        writer = Writer(out, compression=CompressionType.ZSTD, enable_data_crcs=True)
-        writer.start(profile=session.profile, library=session.library)
-        schema_ids = {}
-        for sid, schema in session._scan.schemas.items():
-            schema_ids[sid] = writer.register_schema(schema.name, schema.encoding, schema.data)
-        channel_ids = {}
-        for topic, ch in session.channels.items():
-            raw = session._scan.channels[ch.id]
-            channel_ids[topic] = writer.register_channel(
-                topic, ch.message_encoding, schema_ids.get(raw.schema_id, 0), ch.metadata)
-        for name, record in session._scan.metadata.items():
-            writer.add_metadata(name, record)
-        for m in session.messages(decode=False):
-            writer.add_message(channel_ids[m.topic], m.log_time_ns, m.data, m.publish_time_ns,
-                               m.sequence)
-        writer.finish()
+    with atomic_path(dst) as tmp:
+        write_indexed_copy(tmp, session.path, session._scan)
     return open_session(dst)

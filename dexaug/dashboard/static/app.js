@@ -7,6 +7,15 @@ const STAGES = { workspace: "AutoWS workspace", fsg: "FSG sampling", validate: "
                  report: "report" };
 const demos = new Map();   // key -> demo JSON from /api/sessions (its .result kept up to date)
 const jobs = new Map();    // key -> newest job JSON from /api/jobs
+// Every request carries the custom header the server requires of the page (a cross-site page
+// cannot send it without a CORS preflight, which the server never grants) and, when the page
+// was opened with the printed URL's token (a dashboard listening beyond this machine), the token.
+const TOKEN = new URLSearchParams(location.search).get("token");
+const HEADERS = TOKEN ? { "X-Dexaug": "1", "X-Dexaug-Token": TOKEN } : { "X-Dexaug": "1" };
+
+function api(path, init = {}) {
+  return fetch(path, { ...init, headers: { ...HEADERS, ...(init.headers || {}) } });
+}
 
 function el(tag, attrs = {}, ...children) {
   const e = document.createElement(tag);
@@ -94,7 +103,7 @@ function renderStatus(key) {
 async function startJob(key, button) {
   button.disabled = true;
   try {
-    const r = await fetch("/api/augment", { method: "POST",
+    const r = await api("/api/augment", { method: "POST",
       headers: { "Content-Type": "application/json" }, body: JSON.stringify({ demo: key }) });
     const body = await r.json();
     if (!r.ok) throw new Error(body.error || `HTTP ${r.status}`);
@@ -107,8 +116,9 @@ async function startJob(key, button) {
 }
 
 async function loadSessions() {
-  const r = await fetch("/api/sessions");
+  const r = await api("/api/sessions");
   const body = await r.json();
+  if (!r.ok) throw new Error(body.error || `HTTP ${r.status}`);
   const o = body.options;
   document.getElementById("options").textContent =
     `sessions ${o.sessions_dir} · results ${o.out_root} · n ${o.n} · validate ` +
@@ -135,8 +145,9 @@ async function loadSessions() {
 
 async function poll() {
   try {
-    const r = await fetch("/api/jobs");
+    const r = await api("/api/jobs");
     const body = await r.json();
+    if (!r.ok) throw new Error(body.error || `HTTP ${r.status}`);
     for (const job of body.jobs) {          // oldest first: the newest per demo wins
       const old = jobs.get(job.key);
       const changed = !old || JSON.stringify(old) !== JSON.stringify(job);

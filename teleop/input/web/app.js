@@ -23,6 +23,10 @@ const MAX_BUFFERED_BYTES = 64 * 1024;   // skip a frame rather than queue stale 
 const NO_HANDS_AFTER_S = 3.0;
 
 const params = new URLSearchParams(location.search);
+// this start's access token from the printed URL: sent on the WebSocket handshake and with every
+// control message (the bridge requires it off loopback; on loopback it lets this page take the
+// rig over from a client without it)
+const token = params.get('token') || '';
 const $ = (id) => document.getElementById(id);
 
 // ------------------------------------------------------------------------------ page state
@@ -72,12 +76,13 @@ if (!clientId) {
   sessionStorage.setItem('dexaug-client-id', clientId);
 }
 
-const link = { ws: null, state: 'connecting', attempt: 0, refused: false, nextId: 1 };
+const link = { ws: null, state: 'connecting', attempt: 0, refused: false, replaced: false, nextId: 1 };
 
 function wsUrl() {
   const override = params.get('ws');
-  if (override) return override;
-  return `${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/ws`;
+  if (override) return override;  // development only; the token goes to this page's host only
+  const query = token ? `?token=${encodeURIComponent(token)}` : '';
+  return `${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/ws${query}`;
 }
 
 function connect() {
@@ -101,6 +106,13 @@ function connect() {
   ws.onclose = (ev) => {
     if (link.ws !== ws) return;
     link.ws = null;
+    if (link.replaced) {
+      // a headset with the token took the rig over: retrying would only be refused or, with the
+      // token, fight it; a reload (from the printed URL) takes it back
+      link.state = 'replaced';
+      updateHud();
+      return;
+    }
     if (link.refused) {
       link.state = 'refused';
       updateHud();
@@ -140,6 +152,11 @@ function onText(msg) {
       stats.refused = msg.reason;
       say(`Refused by the bridge: ${msg.reason}. Retrying every 5 s.`, 'error');
       break;
+    case 'replaced':
+      link.replaced = true;
+      stats.refused = msg.reason;
+      say(`Disconnected: ${msg.reason}. Reload the page to connect again.`, 'error');
+      break;
     case 'state':
       stats.state = msg;
       break;
@@ -172,7 +189,7 @@ function send(obj) {
 }
 
 function control(command) {
-  if (!send({ type: 'control', command, id: link.nextId++ })) {
+  if (!send({ type: 'control', command, id: link.nextId++, token })) {
     say(`${command}: not connected to the bridge`, 'warn');
   }
 }

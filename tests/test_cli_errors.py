@@ -1,0 +1,241 @@
+"""Every `dexaug` error is one line on stderr, naming the option or file and what was expected,
+never a traceback; out-of-range options are refused while the command line is parsed, before
+anything is loaded; a busy port ends the command at once with everything it opened closed.
+
+Each test runs the real command in its own process (``python -m dexaug``), as a user would.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from tests.conftest import needs_menagerie, needs_ycb
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _dexaug(*args: str, timeout_s: float = 60.0) -> tuple[subprocess.CompletedProcess[str], float]:
+    """Run ``python -m dexaug ARGS``; returns the finished process and its wall time, seconds."""
+    start = time.monotonic()
+    proc = subprocess.run([sys.executable, "-m", "dexaug", *args], capture_output=True, text=True,
+                          timeout=timeout_s, cwd=REPO, stdin=subprocess.DEVNULL,
+                          env={**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")})
+    return proc, time.monotonic() - start
+
+
+def _one_line_error(proc: subprocess.CompletedProcess[str], *words: str) -> str:
+    """The single stderr line of a failed command, checked to hold every one of ``words``."""
+    assert proc.returncode != 0, proc.stdout
+    assert "Traceback" not in proc.stderr, proc.stderr
+    lines = proc.stderr.splitlines()
+    assert len(lines) == 1, proc.stderr
+    for word in words:
+        assert word in lines[0], (word, lines[0])
+    return lines[0]
+
+
+@pytest.fixture
+def busy_port() -> Iterator[int]:
+    """A TCP port on 127.0.0.1 held by a listening socket for the test's duration."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        yield s.getsockname()[1]
+
+
+@pytest.mark.parametrize(("args", "option", "expected"), [
+    (["generate", "--object", "cylinder", "--n", "0"], "--n", "whole number >= 1"),
+    (["generate", "--object", "cylinder", "--n", "-5"], "--n", "whole number >= 1"),
+    (["generate", "--object", "cylinder", "--fingers", "1"], "--fingers", "whole number >= 2"),
+    (["augment", "s.mcap", "--budget", "0"], "--budget", "finite number > 0"),
+    (["augment", "s.mcap", "--budget", "nan"], "--budget", "finite number > 0"),
+    (["augment", "s.mcap", "--budget", "inf"], "--budget", "finite number > 0"),
+    (["augment", "s.mcap", "--workers", "0"], "--workers", "whole number >= 1"),
+    (["augment", "s.mcap", "--gallery", "-1"], "--gallery", "whole number >= 0"),
+    (["bench", "paper", "--n", "0"], "--n", "whole number >= 1"),
+    (["demo", "script", "--object", "cylinder", "--out", "d", "--tries", "0"], "--tries",
+     "whole number >= 1"),
+    (["replay", "s.mcap", "--rate", "0"], "--rate", "speed factor > 0 or 'max'"),
+    (["replay", "s.mcap", "--rate", "fast"], "--rate", "speed factor > 0 or 'max'"),
+    (["replay", "s.mcap", "--connect", "0"], "--connect", "port number 1-65535"),
+    (["replay", "s.mcap", "--rig", "a/b*"], "--rig", "letters, digits, '_' and '-'"),
+    (["ui", "--port", "70000"], "--port", "port number 0-65535"),
+    (["ui", "--workers", "0"], "--workers", "whole number >= 1"),
+    (["bridge", "--listen", "70000"], "--listen", "port number 1-65535"),
+    (["bridge", "--web-port", "-1"], "--web-port", "port number 0-65535"),
+    (["bridge", "--connect", "7447", "65536"], "--connect", "port number 1-65535"),
+    (["bridge", "--rig", "a/b*"], "--rig", "letters, digits, '_' and '-'"),
+    (["bridge", "--rig", "lab 1"], "--rig", "letters, digits, '_' and '-'"),
+    (["bridge", "--augment-n", "0"], "--augment-n", "whole number >= 1"),
+    (["bridge", "--duration", "-1"], "--duration", "finite number > 0"),
+    (["import-trajectory", "t.npy", "--side", "right", "--out", "o.mcap", "--fps", "0"], "--fps",
+     "finite number > 0"),
+])
+def test_out_of_range_options_are_refused_while_parsing(args: list[str], option: str,
+                                                         expected: str) -> None:
+    proc, seconds = _dexaug(*args)
+    line = _one_line_error(proc, f"argument {option}", expected, f"dexaug {args[0]}")
+    assert proc.returncode == 2, line
+    # refused before anything loads: loading a hand, object or workspace logs INFO lines, which
+    # the one-line check above would catch; the time limit is only against a hang
+    assert seconds < 20.0, seconds
+
+
+def test_a_missing_argument_is_one_line() -> None:
+    proc, _ = _dexaug("generate", "--n", "5")
+    _one_line_error(proc, "--object", "required")
+
+
+def test_augment_without_input_is_one_line() -> None:
+    proc, _ = _dexaug("augment")
+    assert proc.returncode == 2
+    _one_line_error(proc, "give sessions to augment or --watch DIR")
+
+
+def test_error_text_is_printed_as_is_not_as_markup(tmp_path: Path) -> None:
+    """Bracketed text ("[x]", "[bold]") in a path is printed, not read as rich markup."""
+    folder = tmp_path / "take [x] [bold]"
+    folder.mkdir()
+    missing = folder / "[red]session.mcap"
+    proc, _ = _dexaug("replay", str(missing))
+    line = _one_line_error(proc, str(missing))
+    assert line.startswith("error: ")
+
+
+def test_an_existing_file_that_is_not_a_session_names_the_file(tmp_path: Path) -> None:
+    bad = tmp_path / "[thumb] notes.mcap"
+    bad.write_text("not an MCAP file\n")
+    proc, _ = _dexaug("replay", str(bad))
+    _one_line_error(proc, str(bad))
+
+
+def test_replay_of_a_session_without_hand_frames_fails(tmp_path: Path) -> None:
+    from teleop.record.recorder import SessionRecorder
+
+    path = tmp_path / "no_hands.mcap"
+    with SessionRecorder(path, metadata={"hand": "shadow_right", "object": "cylinder"}) as rec:
+        rec.write_event("object_reset")
+    proc, seconds = _dexaug("replay", str(path), "--connect", "1")
+    _one_line_error(proc, str(path), "no hand frames (/hands)")
+    assert seconds < 20.0   # refused before any zenoh session or wait for a bridge
+
+
+def test_busy_listen_port_is_one_line_before_loading(busy_port: int) -> None:
+    proc, seconds = _dexaug("bridge", "--listen", str(busy_port), "--no-view", "--duration", "3",
+                            timeout_s=30.0)
+    _one_line_error(proc, f"--listen {busy_port}", "already in use")  # no loading log before it
+    assert "bridge on rig" not in proc.stdout and seconds < 20.0, seconds
+
+
+def _bridge_on_busy_web_port(port: int) -> tuple[subprocess.CompletedProcess[str], float]:
+    return _dexaug("bridge", "--web", "--http", "--web-port", str(port), "--listen",
+                   str(_free_port()), "--no-view", "--duration", "3", timeout_s=40.0)
+
+
+def test_busy_web_port_ends_the_bridge_at_once(busy_port: int) -> None:
+    """`dexaug bridge --web` on a taken port: an error naming --web-port and an exit, not a
+    hang (the ingest's zenoh peer, opened before the page server failed, is closed)."""
+    proc, seconds = _bridge_on_busy_web_port(busy_port)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
+    first = proc.stderr.splitlines()[0]
+    assert first.startswith(f"error: --web-port {busy_port}: ") and "already in use" in first
+    assert seconds < 20.0, seconds
+
+
+def test_busy_web_port_error_is_the_only_line(busy_port: int) -> None:
+    proc, seconds = _bridge_on_busy_web_port(busy_port)
+    _one_line_error(proc, f"--web-port {busy_port}", "already in use")
+    assert seconds < 5.0, seconds
+
+
+@needs_menagerie
+def test_busy_dashboard_port_is_one_line(busy_port: int, tmp_path: Path) -> None:
+    proc, seconds = _dexaug("ui", "--port", str(busy_port), "--sessions", str(tmp_path),
+                            "--out", str(tmp_path / "out"), timeout_s=40.0)
+    _one_line_error(proc, str(busy_port), "already in use")
+    assert seconds < 15.0, seconds
+
+
+def test_a_real_zenoh_refusal_reads_as_one_clean_line() -> None:
+    """The fallback message for a --listen port taken after the check: zenoh's own error,
+    without the Rust source locations it carries."""
+    import zenoh
+
+    from dexaug.commands.network import zenoh_message
+    from teleop.keys import open_session
+
+    port = _free_port()
+    first = open_session(port)
+    try:
+        with pytest.raises(zenoh.ZError) as refused:
+            open_session(port).close()
+    finally:
+        first.close()
+    text = zenoh_message(refused.value)
+    assert f"127.0.0.1:{port}" in text and "already in use" in text, text
+    assert ".rs:" not in text and "\n" not in text
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _group_processes(pgid: int) -> list[str]:
+    """The command lines of the live (not zombie) processes of process group ``pgid``."""
+    ps = subprocess.run(["ps", "-o", "stat=,args=", "-g", str(pgid)], capture_output=True,
+                        text=True)
+    return [line.split(None, 1)[1] for line in ps.stdout.splitlines()
+            if line.strip() and not line.lstrip().startswith("Z")]
+
+
+@needs_menagerie
+@needs_ycb
+@pytest.mark.parametrize(("signum", "to_group", "status"), [
+    (signal.SIGINT, False, 130), (signal.SIGINT, True, 130), (signal.SIGTERM, False, 143)],
+    ids=["sigint-main-process", "sigint-process-group", "sigterm-main-process"])
+def test_interrupting_fsg_exits_within_seconds(tmp_path: Path, signum: int, to_group: bool,
+                                               status: int) -> None:
+    """SIGINT or SIGTERM while FSG's workers sample (a budget of minutes): the command ends
+    within seconds (status 130 or 143), whether the signal reaches the main process only
+    (`kill`, a service manager, a parent process) or the whole process group (Ctrl-C in a
+    terminal), prints no traceback and leaves no worker behind."""
+    session = REPO / "recordings" / "demo_062_dice.mcap"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "dexaug", "augment", str(session), "--n", "100000", "--budget",
+         "300", "--gallery", "0", "--workers", "2", "--validate", "none", "--out",
+         str(tmp_path / "out")],
+        cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+        start_new_session=True, env={**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")})
+    try:
+        deadline = time.monotonic() + 120.0   # FSG runs once the fork server has two workers
+        while sum("forkserver" in a for a in _group_processes(proc.pid)) < 3:
+            assert proc.poll() is None and time.monotonic() < deadline
+            time.sleep(0.2)
+        time.sleep(3.0)                        # the workers are sampling now
+        assert proc.poll() is None
+        sent = time.monotonic()
+        if to_group:
+            os.killpg(proc.pid, signum)
+        else:
+            proc.send_signal(signum)
+        assert proc.wait(30.0) == status
+        seconds = time.monotonic() - sent
+        assert seconds < 10.0, seconds
+        assert "Traceback" not in proc.stderr.read()
+        time.sleep(1.5)                        # the fork server ends on its own pipe's EOF
+        assert _group_processes(proc.pid) == []
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
