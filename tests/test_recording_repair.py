@@ -211,6 +211,13 @@ def test_early_cut_says_what_was_found_and_where(tmp_path: Path,
     with pytest.raises(RepairError, match=r"nothing to recover, no message survives"):
         repair(path)
     assert not default_output(path).exists()
+    # demo extraction names the cut too, not "raw input only"
+    from teleop.record.demos import DemoError, extract_demos
+
+    with pytest.raises(DemoError, match=rf"no /state message survives: the file is truncated "
+                                        rf"at byte {blocks[0].offset}") as err:
+        extract_demos(path)
+    assert "raw input only" not in str(err.value)
 
 
 def test_repair_refuses_to_replace_the_source_or_an_existing_file(tmp_path: Path) -> None:

@@ -98,10 +98,10 @@ def misses_budget(missing: int, found: int, round_s: float, left_s: float) -> bo
     return found <= 0 or missing / found * round_s > left_s
 
 
-def _worker_run(setup: SamplerSetup, seed: int, worker: int, n: int, budget_s: float
+def _worker_run(setup: SamplerSetup, seed: int, worker: int, n: int, deadline: float
                 ) -> WorkerOutput:
     sampler = Sampler(setup, seed, worker)
-    stopped, sets = run_rounds(sampler, n, time.monotonic() + budget_s)
+    stopped, sets = run_rounds(sampler, n, deadline)
     return sampler.accepted, sampler.stats, stopped, sets
 
 
@@ -210,13 +210,15 @@ def generate(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: WorkspaceClo
         finger_iteration=finger_iteration, link_penetration=link_penetration,
         exact_penetration=exact_penetration,
         params=dataclasses.replace(params, min_fingers=max(params.min_fingers, 2)))
-    budget = time_budget_s - (time.monotonic() - t0)
+    # one absolute deadline (CLOCK_MONOTONIC is system-wide): a worker's start-up, its sampler
+    # set-up and the pool's queueing count against the budget, not only its own sampling
+    deadline = t0 + time_budget_s
     if workers == 1:
-        outs = [_worker_run(setup, seed, 0, n, budget)]
+        outs = [_worker_run(setup, seed, 0, n, deadline)]
     else:
         share = math.ceil(n / workers)
         pool = persistent_pool(workers, preload=(__name__,))
-        futs = [pool.submit(_worker_run, setup, seed + k, k, share, budget)
+        futs = [pool.submit(_worker_run, setup, seed + k, k, share, deadline)
                 for k in range(workers)]
         outs = [f.result() for f in futs]
     grasps, stats, stopped, sets = merge(outs, hand.nq, setup.params)

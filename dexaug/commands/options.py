@@ -58,12 +58,13 @@ def workers_arg(p: argparse.ArgumentParser) -> None:
 def budget_arg(p: argparse.ArgumentParser, default_s: float, per: str = "") -> None:
     """``--budget SECONDS``, with a help that says what it bounds: users read "budget" as the
     whole run, which it is not (``--budget 15`` on a 2-core machine: 16.5 s of FSG, then 30 s
-    validating the 707 grasps found and 5 s of report, 55 s in all)."""
+    validating the 707 grasps found and 5 s of report, 55 s in all; since the workers share
+    the caller's deadline, ``--budget 5`` gives 5.3 s of FSG)."""
     p.add_argument("--budget", type=positive, default=default_s, metavar="SECONDS",
                    help=f"wall-clock limit of the FSG grasp search{per} (default %(default)s s): "
                    "the search stops there with the grasps found so far and reports the "
-                   "shortfall. It bounds that stage only, which may overrun it by its last batch "
-                   "and the start of the worker processes; loading (hand, object, session, "
+                   "shortfall. It bounds that stage only (worker start-up included), which may "
+                   "overrun it by its last batch, a fraction of a second; loading (hand, object, session, "
                    "workspace) comes before it, and the validation of every grasp found, which "
                    "grows with their number and can take longer than the search, and the report "
                    "come after it")
