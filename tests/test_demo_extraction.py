@@ -23,7 +23,7 @@ from mcap.writer import CompressionType, Writer
 from sim.paths import REPO_ROOT
 from teleop import keys
 from teleop.messages import encode
-from teleop.record.demos import extract_demos
+from teleop.record.demos import DemoError, extract_demos
 from teleop.record.session import open_session
 from tests.conftest import needs_menagerie, needs_ycb
 
@@ -148,6 +148,28 @@ def test_a_bridge_recording_yields_a_demo(plain: Path) -> None:
     assert len(states) == len(contacts) > 200
     for (ts, st), (tc, co) in zip(states, contacts, strict=True):
         assert (st["t_s"], st["seq"], ts) == (co["t_s"], co["seq"], tc)
+
+
+def test_no_demo_spans_a_scene_restore(plain: Path, tmp_path: Path) -> None:
+    """A ``scene_restored`` in the middle of the grasp (the bridge re-placed the object and
+    parked the hand) cuts the contact run there: the demo found is no longer the one spanning
+    the whole hold."""
+    (d,) = extract_demos(plain)[:1]
+    s = open_session(plain)
+    start = s.start_time_ns
+    states = s.json_messages("/state")
+    t_demo = next(st["t_s"] for t, st in states if (t - start) * 1e-9 >= d.time_s - 1e-9)
+
+    def restore_mid_grasp(ev: dict) -> dict:
+        return {**ev, "type": "scene_restored", "t_s": t_demo} if ev["type"] == "object_reset" else ev
+
+    broken = _rewrite(plain, tmp_path / "restored.mcap", lambda _topic, t: t, restore_mid_grasp)
+    try:
+        after = extract_demos(broken)
+    except DemoError:   # what is left on either side is too short for a demo
+        after = []
+    assert all(x.duration_s < d.duration_s for x in after)
+    assert all(abs(x.time_s - d.time_s) > 1e-6 for x in after)
 
 
 def test_contacts_pair_by_seq_not_log_time(plain: Path, tmp_path: Path) -> None:

@@ -242,7 +242,7 @@ def extract_demos(path: Path | str, params: DemoParams | None = None) -> list[De
     ok = np.array([lead in f for f in track.fingers_touching]) & (n_touch >= p.min_fingers)
     clock = track.clock_ns
     runs = []
-    for lo, hi in _merged_runs(clock, ok, p.max_gap_s):
+    for lo, hi in _split_at(_merged_runs(clock, ok, p.max_gap_s), _scene_breaks(session, track)):
         dur = (int(clock[hi - 1]) - int(clock[lo])) * 1e-9
         if dur >= p.min_duration_s:
             runs.append((lo, hi, dur))
@@ -261,6 +261,31 @@ def extract_demos(path: Path | str, params: DemoParams | None = None) -> list[De
         raise DemoError(f"{path}: no usable grasp: {_why_not(track, n_touch, ok, lead, p)}")
     return [_demo_at(session, track, i, hand, obj, how, dur, end)
             for i, (how, dur, end) in sorted(moments.items())]
+
+
+#: events after which the scene is not the one before: a contact run never spans them
+SCENE_BREAKS = ("scene_restored", "object_reset", "object_changed")
+
+
+def _scene_breaks(session: Session, track: _Track) -> list[int]:
+    """State indices at which the bridge re-placed the object or restored the scene
+    (:data:`SCENE_BREAKS`): a grasp cannot go on across them."""
+    return sorted({_marked_state(track, t, ev) for t, ev in session.events()
+                   if ev.get("type") in SCENE_BREAKS})
+
+
+def _split_at(runs: list[tuple[int, int]], breaks: list[int]) -> list[tuple[int, int]]:
+    """``runs`` ([start, stop) state ranges) cut at every break index inside one: the part
+    before ends at the break, the part after starts after it."""
+    out = []
+    for lo, hi in runs:
+        for b in breaks:
+            if lo < b < hi:
+                out.append((lo, b))
+                lo = b + 1
+        if lo < hi:
+            out.append((lo, hi))
+    return out
 
 
 def _mark_states(session: Session, track: _Track, p: DemoParams, lead: str,
