@@ -31,6 +31,7 @@ this layout) raises :class:`DatasetError` naming it, never an h5py traceback.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 from collections.abc import Mapping, Sequence
@@ -43,6 +44,7 @@ import numpy as np
 
 from sim.errors import DexaugError
 from sim.io import atomic_path
+from sim.versions import package_versions
 
 __all__ = ["COLUMNS", "DatasetError", "ObjectTable", "append", "from_fsg", "load", "save"]
 
@@ -218,12 +220,18 @@ def _read_group(g: h5py.Group) -> ObjectTable:
 
 def save(path: Path | str, tables: Mapping[str, ObjectTable],
          file_attrs: Mapping[str, Any] | None = None) -> None:
-    """Write ``tables`` (object name → table) to ``path`` atomically (replacing it)."""
+    """Write ``tables`` (object name → table) to ``path`` atomically (replacing it); the file
+    records the versions of the packages that made it (``versions``, JSON), and each table
+    keeps the ``versions`` it was made with (a table without them gets the writer's)."""
+    versions = json.dumps(package_versions())
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
         f.attrs["format"] = "dexaug-grasps-1"
+        f.attrs["versions"] = versions
         for k, v in (file_attrs or {}).items():
             f.attrs[k] = v if isinstance(v, (str, int, float, bool)) else json.dumps(v)
         for name, t in tables.items():
+            if "versions" not in t.attrs:
+                t = dataclasses.replace(t, attrs={**t.attrs, "versions": versions})
             _write_group(f.create_group(name), t)
     log.info("wrote %s: %s", path, ", ".join(f"{k} {len(t)}" for k, t in tables.items()))
 

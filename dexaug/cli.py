@@ -38,6 +38,23 @@ COMMAND_MODULES = tuple(f"dexaug.commands.{m}" for m in (
     "ui"))
 
 
+def version_text() -> str:
+    """``dexaug 0.1.0 (mujoco 3.3.7, mink 0.0.x, …)``: what a result was made with."""
+    from sim.versions import package_versions
+
+    versions = package_versions()
+    own = versions.pop("dexaug", "unknown")
+    return f"dexaug {own} (" + ", ".join(f"{k} {v}" for k, v in versions.items()) + ")"
+
+
+class _PrintVersion(argparse.Action):
+    """``--version``: :func:`version_text` on one line (argparse's own action wraps it)."""
+
+    def __call__(self, parser: argparse.ArgumentParser, *args: object, **kwargs: object) -> None:
+        print(version_text())
+        parser.exit(0)
+
+
 def one_line(text: str) -> str:
     """``text`` with every run of whitespace (newlines included) as one space."""
     return " ".join(text.split())
@@ -65,6 +82,8 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
         "validate every grasp in MuJoCo.")
     parser.add_argument("-v", "--verbose", action="store_true", help="debug logging (and the "
                         "traceback of an unforeseen error)")
+    parser.add_argument("--version", action=_PrintVersion, nargs=0,
+                        help="print dexaug's version and those of the packages results depend on")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name, (setup, fn) in COMMANDS.items():
         doc = (fn.__doc__ or "").strip()
