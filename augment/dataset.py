@@ -12,9 +12,11 @@ Layout (one group per object, with the reference implementation's column names `
     ``contact_offsets`` (N+1) int64: grasp i owns rows ``offsets[i]:offsets[i+1]``;
     validation columns ``passed`` (N) bool, ``failure`` (N) strings ("" when passed or not
     validated), ``displacement_m``, ``rotation_rad``, ``penetration_m``, ``sim_epsilon`` (N)
-    (NaN when not validated); ``pregrasp_pose`` / ``squeeze_pose`` (N,J) radians: the joint
-    vectors the validator closed from and to (NaN when not simulated), ``stages_made_by`` (N)
-    strings: how they were made ("dexaug" contact targets, "bodex", "dgb-rule", "given"),
+    (NaN when not validated; −1 when the simulated contacts after closing are not in force
+    closure, the GWS convention of :mod:`sim.metrics.gws`); ``pregrasp_pose`` /
+    ``squeeze_pose`` (N,J) radians: the joint vectors the validator closed from and to (NaN
+    when not simulated), ``stages_made_by`` (N) strings: how they were made ("dexaug" contact
+    targets, "bodex", "dgb-rule", "given"),
     ``closing`` (N) strings: "free" or "pinned" (the object held while the fingers closed);
     ``demo_id`` (N) strings.
     Attributes (provenance): ``hand``, ``config_hash``, ``seed``, ``versions`` (JSON).
@@ -84,6 +86,14 @@ class ObjectTable:
 
     def __getitem__(self, key: str) -> np.ndarray:
         return self.columns[key]
+
+    def __repr__(self) -> str:
+        """A summary, not the arrays: a printed table of thousands of grasps stays one line."""
+        passed = int(np.count_nonzero(self.columns.get("passed", np.zeros(0, bool))))
+        rejected = 0 if self.rejected is None else len(self.rejected)
+        return (f"ObjectTable({len(self)} grasps, {passed} passed, {rejected} rejected; "
+                f"{len(self.joint_names)} joints, fingers {list(self.finger_names)}; "
+                f"columns {sorted(self.columns)}; attrs {sorted(self.attrs)})")
 
     def contacts(self, i: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         o = self.columns["contact_offsets"]
@@ -246,15 +256,43 @@ def load(path: Path | str) -> dict[str, ObjectTable]:
         raise DatasetError(f"{path}: not a readable grasp dataset: {exc}") from None
 
 
+def _row_keys(t: ObjectTable) -> list[bytes]:
+    """Per grasp, what makes two rows the same grasp: palm pose, joints and demo, exactly."""
+    palm, joints = np.ascontiguousarray(t["palm_pose"]), np.ascontiguousarray(t["hand_pose"])
+    return [palm[i].tobytes() + joints[i].tobytes() + str(t["demo_id"][i]).encode()
+            for i in range(len(t))]
+
+
+def _new_rows(old: ObjectTable | None, new: ObjectTable) -> ObjectTable:
+    """``new`` without the grasps ``old`` already holds (:func:`_row_keys`)."""
+    if old is None or not len(new):
+        return new
+    seen = set(_row_keys(old))
+    return _select(new, np.array([k not in seen for k in _row_keys(new)], bool))
+
+
 def append(path: Path | str, tables: Mapping[str, ObjectTable]) -> None:
     """Add grasps to ``path`` (created when missing): read, concatenate per object, rewrite
-    atomically."""
+    atomically. Grasps the file already holds (the same palm pose, joints and demo: a re-run
+    with the same seed) are not added twice; how many were skipped is logged."""
     path = Path(path)
     existing = load(path) if path.is_file() else {}
     file_attrs: dict[str, Any] = {}
     if path.is_file():
         with h5py.File(path, "r") as f:   # load() just read it: an error here is a race
-            file_attrs = {k: v for k, v in f.attrs.items() if k != "format"}
+            file_attrs = {k: v for k, v in f.attrs.items() if k not in ("format", "versions")}
     for name, t in tables.items():
-        existing[name] = _concat(existing[name], t) if name in existing else t
+        if name in existing:
+            old = existing[name]
+            fresh = _new_rows(old, t)
+            if t.rejected is not None:
+                fresh.rejected = _new_rows(old.rejected, t.rejected)
+            skipped = len(t) + (len(t.rejected) if t.rejected is not None else 0) - len(fresh) - (
+                len(fresh.rejected) if fresh.rejected is not None else 0)
+            if skipped:
+                log.warning("%s: %d of the new %s grasps are already in the file; not added "
+                            "again", path, skipped, name)
+            existing[name] = _concat(old, fresh)
+        else:
+            existing[name] = t
     save(path, existing, file_attrs)

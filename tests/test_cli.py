@@ -129,5 +129,10 @@ def test_generate_writes_and_appends_a_dataset(tmp_path: Path, capsys) -> None:
     assert "shortfall" in text and "time budget" in text
     t2 = dataset.load(out)["062_dice"]
     assert len(t2) > len(t)   # appended, unvalidated grasps land in the main table
+    # the same run again (same seed, same grasps) adds nothing: no exact duplicates
+    assert main([*args, "--n", "6"]) == 0
+    t3 = dataset.load(out)["062_dice"]
+    assert (len(t3), len(t3.rejected)) == (len(t2), len(t2.rejected))
+    assert len(repr(t3)) < 1000 and f"{len(t3)} grasps" in repr(t3)
     code = main(["generate", "--object", "062_dice", "--demo", "no_such_grasp", "--n", "1"])
     assert code == 2
