@@ -68,6 +68,21 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {one_line(message)} (see {self.prog} --help)\n")
 
 
+class HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """The subcommands' help: descriptions as written, and every option's default shown (an
+    option whose help does not name its default gets ``(default: X)``; none for flags and
+    options without one)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        text = action.help or ""
+        default = action.default
+        shown = not (default is None or default is False or default is argparse.SUPPRESS
+                     or (isinstance(default, list) and not default))
+        if action.option_strings and "default" not in text and shown:
+            text += " (default: %(default)s)"
+        return text
+
+
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     """The parser of every subcommand; with ``only`` (a subcommand name), the arguments of that
     one alone are set up and the others are listed by name and summary: setting up arguments
@@ -88,7 +103,7 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     for name, (setup, fn) in COMMANDS.items():
         doc = (fn.__doc__ or "").strip()
         p = sub.add_parser(name, help=doc.splitlines()[0] if doc else None, description=doc,
-                           formatter_class=argparse.RawDescriptionHelpFormatter)
+                           formatter_class=HelpFormatter)
         if only in (None, name):
             setup(p)
         p.set_defaults(handler=fn)

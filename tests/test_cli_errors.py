@@ -239,3 +239,26 @@ def test_interrupting_fsg_exits_within_seconds(tmp_path: Path, signum: int, to_g
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
             proc.wait()
+
+
+def test_every_option_help_shows_its_default() -> None:
+    """`dexaug <command> --help` names the default of every option that has one (#16: help
+    texts hid defaults): the value as given, or the help's own words for it."""
+    import argparse
+
+    from dexaug.cli import COMMANDS, build_parser
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    missing = []
+    for name in COMMANDS:
+        p = sub.choices[name]
+        text = " ".join(p.format_help().split())
+        for action in p._actions:
+            d = action.default
+            if (not action.option_strings or d is None or d is False or d is argparse.SUPPRESS
+                    or (isinstance(d, list) and not d)):
+                continue
+            if str(d) not in text and "default" not in (action.help or ""):
+                missing.append(f"{name} {action.option_strings[0]}")
+    assert not missing, missing

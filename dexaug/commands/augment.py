@@ -271,10 +271,12 @@ def _bench_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("suite", choices=("paper",), help="paper: the reference paper's Tables 2, 3")
     p.add_argument("--n", type=count, default=20, help="grasps requested per row")
     budget_arg(p, 30.0, per=" of each row")
-    p.add_argument("--objects", nargs="*", default=list(OBJECTS))
-    p.add_argument("--methods", nargs="*", default=list(VARIANTS), choices=list(VARIANTS))
+    p.add_argument("--objects", nargs="*", default=list(OBJECTS),
+                   help=f"objects (default: the paper's {', '.join(OBJECTS)})")
+    p.add_argument("--methods", nargs="*", default=list(VARIANTS), choices=list(VARIANTS),
+                   help="the paper's method variants (default: all)")
     p.add_argument("--workspaces", nargs="*", default=["manual", "demo"],
-                   choices=["manual", "demo"])
+                   choices=["manual", "demo"], help="workspace rows (default: both)")
     workers_arg(p)
     p.add_argument("--no-six-dir", action="store_true", help="skip the six-dir validation")
     p.add_argument("--out", type=Path, help="also write the Markdown table to this file")

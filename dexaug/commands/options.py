@@ -45,7 +45,7 @@ def generation_args(p: argparse.ArgumentParser) -> None:
                    help="drop the least important finger when a round yields too few grasps "
                    "(the paper's finger iteration); default: on without a demo, off with one "
                    "(the demo's fingers are kept)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="FSG seed (worker k uses seed + k)")
     workers_arg(p)
     budget_arg(p, 120.0)
 
