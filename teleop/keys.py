@@ -16,7 +16,8 @@ key                            kind        payload
 =============================  ==========  =================================================
 
 Control commands: ``start_recording``, ``stop_recording``, ``choose_object``,
-``reset_object``, ``set_object_mode``, ``mark_grasp``, ``status`` (see
+``reset_object``, ``set_object_mode``, ``set_object_rest``, ``next_object_rest``,
+``mark_grasp``, ``status`` (see
 :mod:`teleop.bridge.control`). A query is untrusted: it names a recording (``name``) or a
 catalogue object, never a file path (:func:`teleop.bridge.control.remote_args`).
 
@@ -34,7 +35,8 @@ import zenoh
 
 PREFIX = "dexaug"
 CONTROL_COMMANDS: tuple[str, ...] = ("start_recording", "stop_recording", "choose_object",
-                                     "reset_object", "set_object_mode", "mark_grasp", "status")
+                                     "reset_object", "set_object_mode", "set_object_rest",
+                                     "next_object_rest", "mark_grasp", "status")
 
 
 class KeyError_(ValueError):

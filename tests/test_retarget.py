@@ -16,7 +16,7 @@ import pytest
 from sim.errors import ConfigError
 from sim.hand.config import hand_dir, hand_names
 from sim.paths import SHARED_ASSETS
-from sim.transforms import pose_mul, quat_angle
+from sim.transforms import pose_mul, quat_angle, quat_to_mat
 from teleop.input.iwer import iwer_hand_frames, load_iwer_capture
 from teleop.messages import JOINT_INDEX, HandFrame, HandState
 from teleop.retarget.config import (
@@ -106,7 +106,8 @@ def test_scale_calibration(retargeter, frames, config):
 
 def test_wrist_and_targets_follow_the_operator(shadow, frames, trace, retargeter):
     """World-frame composition: base pose ∘ palm offset = reported palm pose, and a target
-    (no pinch active) is the operator's fingertip scaled about the operator's wrist."""
+    (no pinch active) is the operator's fingertip pad (the tip joint moved by its radius along
+    −z of its frame, to the palmar skin) scaled about the operator's wrist."""
     op = operator_thumb_index_m(frames)
     i = int(np.nanargmax(op))
     hs = frames[i].right
@@ -119,8 +120,11 @@ def test_wrist_and_targets_follow_the_operator(shadow, frames, trace, retargeter
                              trace.tip_targets_m[i],
                              np.tile([1.0, 0, 0, 0], (len(trace.finger_names), 1)))
     mapping = retargeter.mapping.fingers
-    expected = np.array([wrist + retargeter.scale * (hs.joint_position(mapping[f]) - wrist)
-                         for f in trace.finger_names])
+    idx = [JOINT_INDEX[mapping[f]] for f in trace.finger_names]
+    dorsal = quat_to_mat(hs.orientations_wxyz[idx])[:, :, 2]
+    pads = hs.positions[idx] - hs.radii[idx, None] * dorsal
+    assert (np.linalg.norm(pads - hs.positions[idx], axis=1) > 0.004).all()  # Quest: 5–9 mm
+    expected = wrist + retargeter.scale * (pads - wrist)
     np.testing.assert_allclose(tips_world, expected, atol=1e-9)
 
 

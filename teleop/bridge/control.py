@@ -10,11 +10,20 @@ Commands (:data:`COMMANDS`): ``start_recording`` (``name``: a file name in
 ``recordings_dir``; in-process callers only: ``path``, ``overwrite``),
 ``stop_recording`` (``reason``), ``choose_object`` (``object``), ``reset_object``,
 ``set_object_mode`` (``object_mode`` "demo" or "free": the object is put back on its spot in
-that mode, :mod:`teleop.bridge.object_mode`), ``mark_grasp`` (extra keys go into the event),
-``status``. A recording's metadata names the ``object_mode`` and the ``table``
-(:func:`teleop.bridge.object_mode.table_record`) it started with, and every placement event
-(``object_changed``, ``object_reset``; after a mode change with the ``previous`` mode) names
-the mode from then on and how the drop went, so the mode of every step is known. Events go out
+that mode, :mod:`teleop.bridge.object_mode`), ``set_object_rest`` (``rest``: an index into the
+object's stable resting poses, best first, :func:`teleop.bridge.object_mode.scene_rest_poses`;
+optional ``yaw_deg`` about the table normal, default the current one: the object is put back
+on its spot lying that way, in the current mode), ``next_object_rest`` (the next resting pose,
+after the last the first; the page's button), ``mark_grasp`` (extra keys go into the event),
+``status``. ``choose_object`` takes the same optional ``rest`` and ``yaw_deg`` for the new
+object; without them the new object stands upright at the config's ``object_yaw_deg``.
+The first use of an object's resting poses computes them (about a second per object, in the
+loop thread), later ones read them from the cache. A recording's metadata names the
+``object_mode``, the ``table`` (:func:`teleop.bridge.object_mode.table_record`) and the
+``object_rest`` (:class:`teleop.bridge.object_mode.RestChoice`) it started with, and every
+placement event (``object_changed``, ``object_reset``; after a mode change with the
+``previous`` mode, after a resting-pose change with ``previous_rest``) names the mode and the
+resting pose from then on and how the drop went, so the mode of every step is known. Events go out
 on ``/events`` and,
 when recording, to the session's ``/events`` with the simulated time of the step they happen
 at (``t_s``, seconds; a ``grasp_mark`` also names the ``seq`` of the last frame answered), the
@@ -24,8 +33,10 @@ Trust: a query on the zenoh queryable is untrusted (any process that reaches the
 and the headset page's forwarded requests). :func:`remote_args` checks its arguments before it is
 queued: a recording is chosen by ``name`` only (sanitised to a plain file name, ``.mcap``
 added, created inside ``recordings_dir`` and never over an existing file: a ``_2``, ``_3``…
-suffix is added), ``path`` and ``overwrite`` are refused, and ``choose_object`` takes an id of
-the installed catalogue (a primitive or a YCB folder), never a file. In-process Python calls of
+suffix is added), ``path`` and ``overwrite`` are refused, ``choose_object`` takes an id of
+the installed catalogue (a primitive or a YCB folder), never a file, and a resting pose is an
+integer ``rest`` and a finite ``yaw_deg``, nothing else (the index's range is checked against
+the object's poses before anything moves). In-process Python calls of
 :meth:`BridgeControl.control` (the CLI's ``--record PATH``, re-recording) are trusted.
 
 A failed ``choose_object`` changes nothing: the new scene is built first, and on failure the
@@ -57,7 +68,14 @@ from sim.world.primitives import PRIMITIVES
 from sim.world.scene import Scene
 from teleop import keys as zkeys
 from teleop.bridge.config import BridgeConfig, check_object_mode
-from teleop.bridge.object_mode import Placement, place_object, table_record
+from teleop.bridge.object_mode import (
+    Placement,
+    place_object,
+    rest_home,
+    rest_request,
+    scene_rest_poses,
+    table_record,
+)
 from teleop.bridge.view_stream import ViewStream
 from teleop.record.contact_record import ContactRecord
 from teleop.record.recorder import SessionRecorder
@@ -73,7 +91,8 @@ Array = np.ndarray
 COMMANDS: tuple[str, ...] = zkeys.CONTROL_COMMANDS
 #: the bridge attributes a scene build sets: saved before ``choose_object`` builds, restored
 #: when the build fails
-_SCENE_STATE = ("scene", "object_name", "_tip_fingers", "_object_home", "placement")
+_SCENE_STATE = ("scene", "object_name", "_tip_fingers", "_object_home", "placement", "object_rest",
+                "object_rest_yaw_deg")
 _OBJECT_ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,99}")
 _NAME_MAX_CHARS = 100
 _MAX_SUFFIX = 1000
@@ -112,6 +131,9 @@ def remote_args(command: str, args: dict[str, Any]) -> dict[str, Any]:
             raise ValueError("start_recording: 'name' must be a string")
     elif command == "choose_object":
         args = {**args, "object": installed_object(args.get("object"))}
+        rest_request(command, args)
+    elif command == "set_object_rest":
+        rest_request(command, args, only_rest=True)
     return args
 
 
@@ -155,6 +177,10 @@ class BridgeControl:
     object_name: str
     object_mode: str
     placement: Placement
+    #: the resting pose the object is placed in (None: upright, the home pose) and its yaw
+    #: (degrees; None: the config's object_yaw_deg); class defaults until a command sets them
+    object_rest: int | None = None
+    object_rest_yaw_deg: float | None = None
     counts: Counter[str]
     loop_running: bool
     _lock: threading.Lock
@@ -259,7 +285,8 @@ class BridgeControl:
                 "fingers": list(self.hand.finger_names), "rig": self.keys.rig,
                 "world_offset_m": list(map(float, self.config.world_offset_m)),
                 "deterministic": self.config.deterministic, "object_mode": self.object_mode,
-                "table": table_record(self.scene)}
+                "table": table_record(self.scene),
+                "object_rest": self.placement.rest.to_json() if self.placement.rest else None}
         self._recorder = SessionRecorder(path, metadata=meta, overwrite=bool(args.get("overwrite")))
         self._recording_path = path
         logger.info("recording to %s", path)
@@ -285,8 +312,10 @@ class BridgeControl:
 
     def _cmd_choose_object(self, args: dict[str, Any]) -> dict[str, Any]:
         name = str(args["object"])
+        rest, yaw = rest_request("choose_object", args)
         saved = {k: getattr(self, k) for k in _SCENE_STATE if hasattr(self, k)}
-        try:
+        try:   # a rest index the new object lacks fails its placement: the old scene stays
+            self.object_rest, self.object_rest_yaw_deg = rest, yaw
             self._build_scene(name)
         except Exception:
             for k, v in saved.items():   # the previous scene stays, and /view never stopped
@@ -300,9 +329,34 @@ class BridgeControl:
         return {"object": name}
 
     def _place_object(self) -> Placement:
-        """The object at its home pose for the current mode (demo: dropped, settled, held)."""
-        self.placement = place_object(self.scene, self._object_home, self.object_mode, self.config)
+        """The object on its spot in the chosen resting pose for the current mode (demo:
+        dropped, settled, held)."""
+        yaw = self.config.object_yaw_deg if self.object_rest is None or \
+            self.object_rest_yaw_deg is None else self.object_rest_yaw_deg
+        home, rest = rest_home(self.scene, self._object_home, self.object_rest, yaw)
+        self.placement = place_object(self.scene, home, self.object_mode, self.config, rest)
         return self.placement
+
+    def _cmd_set_object_rest(self, args: dict[str, Any]) -> dict[str, Any]:
+        rest, yaw = rest_request("set_object_rest", args)
+        poses = scene_rest_poses(self.scene)
+        index = poses.check_index(rest, "set_object_rest: rest")
+        return self._rest_to(index, self.object_rest_yaw_deg if yaw is None else yaw, len(poses))
+
+    def _cmd_next_object_rest(self, args: dict[str, Any]) -> dict[str, Any]:
+        poses = scene_rest_poses(self.scene)
+        index = 0 if self.object_rest is None else (self.object_rest + 1) % len(poses)
+        return self._rest_to(index, self.object_rest_yaw_deg, len(poses))
+
+    def _rest_to(self, index: int, yaw_deg: float | None, n_poses: int) -> dict[str, Any]:
+        """Re-place the object in resting pose ``index`` at ``yaw_deg`` (None: the config's),
+        with an ``object_reset`` event naming the ``previous_rest``."""
+        previous = self.placement.rest.to_json() if self.placement.rest is not None else None
+        self.object_rest, self.object_rest_yaw_deg = index, yaw_deg
+        placement = self._place_object()
+        self._event("object_reset", {"object": self.object_name, "previous_rest": previous,
+                                     **placement.to_json()})
+        return {"object_rest": placement.to_json()["object_rest"], "rest_poses": n_poses}
 
     def _cmd_reset_object(self, args: dict[str, Any]) -> dict[str, Any]:
         placement = self._place_object()
@@ -338,5 +392,6 @@ class BridgeControl:
                 "last_seq": self._last_seq, "sim_time_s": self.sim_time_s,
                 "view": self.view_active, "loop_running": self.loop_running,
                 "deterministic": self.config.deterministic, "object_mode": self.object_mode,
-                "object_held": self.scene.object_held}
+                "object_held": self.scene.object_held, "object_rest": self.object_rest,
+                "object_rest_yaw_deg": self.object_rest_yaw_deg}
 

@@ -7,6 +7,12 @@ Older sessions, and raw-input ones that never went through a bridge (a synthetic
 capture), name neither: they ran with a free object, so they are treated as ``"free"`` with the
 table of the bridge's config, and that is logged. An explicit mode (``--object-mode``, the
 ``object_mode`` argument) wins over the session's.
+
+The resting pose (:func:`session_object_rest`): a session recorded since resting poses names
+the ``object_rest`` it started with; its index and yaw are the ``set_object_rest`` arguments
+that put the object back that way (the index names a pose of the same computation when its
+``poses_key`` matches the bridge's, :class:`teleop.bridge.object_mode.RestChoice`). A session
+without it, or with the upright home pose (index null), needs nothing.
 """
 
 from __future__ import annotations
@@ -23,7 +29,7 @@ from sim.errors import ConfigError
 from teleop import keys as zkeys
 from teleop.bridge.config import BridgeConfig, check_object_mode
 
-__all__ = ["session_config", "session_object_mode", "tell_bridge"]
+__all__ = ["session_config", "session_object_mode", "session_object_rest", "tell_bridge"]
 
 logger = logging.getLogger(__name__)
 
@@ -40,6 +46,22 @@ def session_object_mode(meta: dict[str, Any], source: Path | str,
                     "treated as %r", source, _OLD_MODE)
         return _OLD_MODE
     return check_object_mode(meta["object_mode"], f"{source}: metadata object_mode")
+
+
+def session_object_rest(meta: dict[str, Any], source: Path | str) -> dict[str, Any] | None:
+    """The ``set_object_rest`` arguments (``rest``, ``yaw_deg``) of the session's resting pose,
+    None when it started upright at the home pose or predates resting poses; ConfigError naming
+    ``source`` when the record is malformed."""
+    rest = meta.get("object_rest")
+    if rest is None or (isinstance(rest, dict) and rest.get("index") is None):
+        return None
+    index = rest.get("index") if isinstance(rest, dict) else None
+    yaw = rest.get("yaw_deg") if isinstance(rest, dict) else None
+    if isinstance(index, bool) or not isinstance(index, int) or index < 0 or \
+            isinstance(yaw, bool) or not isinstance(yaw, int | float):
+        raise ConfigError(f"{source}: metadata object_rest: expected null or an object with an "
+                          f"integer index >= 0 and a number yaw_deg, got {rest!r}")
+    return {"rest": index, "yaw_deg": float(yaw)}
 
 
 def _session_table(meta: dict[str, Any], source: Path | str, cfg: BridgeConfig) -> bool:

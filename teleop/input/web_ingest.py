@@ -70,7 +70,8 @@ __all__ = ["PAGE_ARGS", "PAGE_COMMANDS", "WebIngest", "WebIngestConfig"]
 logger = logging.getLogger(__name__)
 
 #: Control commands the page may send (the rest of the control API stays on zenoh).
-PAGE_COMMANDS = ("start_recording", "stop_recording", "mark_grasp", "reset_object")
+PAGE_COMMANDS = ("start_recording", "stop_recording", "mark_grasp", "reset_object",
+                 "next_object_rest")
 #: the arguments each page command may carry (anything else is refused, never forwarded): a
 #: remote caller names a recording, it never chooses a path or overwrites a file
 PAGE_ARGS: dict[str, tuple[str, ...]] = {"start_recording": ("name",)}

@@ -47,7 +47,10 @@ WRIST_TO_PALM_CONVENTION.setflags(write=False)
 class HandMapping:
     """``configs/hands/<hand>/retarget.toml``: how one robot hand is driven.
 
-    side: the operator hand ("left"/"right"). fingers: robot finger name → OpenXR joint name.
+    side: the operator hand ("left"/"right"). fingers: robot finger name → OpenXR joint name
+    (its tip joint, whose pad drives the finger's pulp site). phalanges: robot link body name →
+    OpenXR joint (an intermediate/distal joint, whose centre drives the body's origin, the
+    joint at the link's proximal end; empty: no phalanx tasks).
     scale_finger: the robot finger whose wrist→pulp length calibrates the scale. wrist_pos_m:
     the operator's wrist point in the robot's frame_palm (metres). wrist_quat_wxyz: extra
     rotation of the operator's wrist frame before the convention map (from ``wrist_rpy_deg``).
@@ -57,6 +60,7 @@ class HandMapping:
     hand: str
     side: str
     fingers: dict[str, str]
+    phalanges: dict[str, str]
     scale_finger: str
     wrist_pos_m: Array
     wrist_quat_wxyz: Array
@@ -87,6 +91,10 @@ class RetargetConfig:
     world_offset_m: Array
     pinch_release_gap_m: float
     pinch_cost: float
+    pad_targets: bool
+    phalanx_cost: float
+    snap_distance_m: float
+    calibration_s: float
     hands: Mapping[str, HandMapping] = field(default_factory=dict)
 
     def hand(self, name: str) -> HandMapping:
@@ -99,8 +107,9 @@ class RetargetConfig:
 _RETARGET_KEYS = {"solver", "iterations", "dt_s", "fingertip_cost", "posture_cost",
                   "task_lm_damping", "damping", "limit_gain", "filter_time_constant_s",
                   "filter_alpha", "scale", "operator_hand_length_m", "wrist_position_scale",
-                  "world_offset_m", "pinch_release_gap_m", "pinch_cost"}
-_HAND_KEYS = {"side", "fingers", "scale_finger", "wrist_pos_m", "wrist_rpy_deg"}
+                  "world_offset_m", "pinch_release_gap_m", "pinch_cost", "pad_targets",
+                  "phalanx_cost", "snap_distance_m", "calibration_s"}
+_HAND_KEYS = {"side", "fingers", "phalanges", "scale_finger", "wrist_pos_m", "wrist_rpy_deg"}
 
 
 def hand_mapping_path(name: str) -> Path:
@@ -134,11 +143,13 @@ def load_hand_mapping(name: str, path: Path | str | None = None) -> HandMapping:
         raise fingers_sec.error(None, "expected at least one finger = \"<openxr joint>\"")
     if len(set(fingers.values())) != len(fingers):
         raise fingers_sec.error(None, "two robot fingers are driven by the same OpenXR joint")
+    phalanges = _phalanges(sec, set(fingers.values()))
     scale_finger = sec.str("scale_finger")
     if scale_finger not in fingers:
         raise sec.error("scale_finger", f"{scale_finger!r} is not one of the mapped fingers "
                         f"{sorted(fingers)}")
-    return HandMapping(hand=name, side=side, fingers=fingers, scale_finger=scale_finger,
+    return HandMapping(hand=name, side=side, fingers=fingers, phalanges=phalanges,
+                       scale_finger=scale_finger,
                        wrist_pos_m=np.array(sec.floats("wrist_pos_m", 3)),
                        wrist_quat_wxyz=rpy_deg_to_quat(
                            sec.floats("wrist_rpy_deg", 3, [0.0, 0.0, 0.0])),
@@ -173,7 +184,7 @@ def load_retarget_config(path: Path | str | None = None) -> RetargetConfig:
         iterations=_bounded_int(sec, "iterations", 2, 1, 10),
         dt_s=_positive(sec, "dt_s", 0.011),
         fingertip_cost=_positive(sec, "fingertip_cost", 1.0),
-        posture_cost=sec.float("posture_cost", 0.01, min=0.0),
+        posture_cost=sec.float("posture_cost", 0.003, min=0.0),
         task_lm_damping=sec.float("task_lm_damping", 0.0, min=0.0),
         damping=sec.float("damping", 1e-6, min=0.0),
         limit_gain=_positive(sec, "limit_gain", 0.95, max=1.0),
@@ -185,7 +196,28 @@ def load_retarget_config(path: Path | str | None = None) -> RetargetConfig:
         world_offset_m=np.array(sec.floats("world_offset_m", 3, [0.0, 0.0, 0.0])),
         pinch_release_gap_m=sec.float("pinch_release_gap_m", 0.03, min=0.0),
         pinch_cost=sec.float("pinch_cost", 5.0, min=0.0),
+        pad_targets=sec.bool("pad_targets", True),
+        phalanx_cost=sec.float("phalanx_cost", 0.5, min=0.0),
+        snap_distance_m=sec.float("snap_distance_m", 0.015, min=0.0, max=0.05),
+        calibration_s=sec.float("calibration_s", 1.0, min=0.0, max=60.0),
     )
+
+
+def _phalanges(sec: Section, tip_joints: set[str]) -> dict[str, str]:
+    """``[phalanges]``: robot link body → OpenXR joint, each joint a finger joint that is not
+    also a fingertip target and used once (the bodies are checked against the hand model by
+    the retargeter)."""
+    phal_sec = sec.section("phalanges", {})
+    out: dict[str, str] = {}
+    for body in phal_sec.data:
+        joint = phal_sec.str(body)
+        if joint not in JOINT_INDEX or joint in ("palm", "wrist") or joint in tip_joints:
+            raise phal_sec.error(body, f"expected an OpenXR finger joint that is not a fingertip "
+                                 f"target (e.g. 'index_intermediate'), got {joint!r}")
+        out[body] = joint
+    if len(set(out.values())) != len(out):
+        raise phal_sec.error(None, "two robot bodies are driven by the same OpenXR joint")
+    return out
 
 
 def _positive(sec: Section, key: str, default: float, max: float | None = None) -> float:

@@ -26,9 +26,12 @@ class RetargetResult:
     within limits). base_pos_m / base_quat_wxyz: where to put the hand model's base (its model
     frame, the root) in the world so the robot's wrist follows the operator's wrist.
     palm_pos_m / palm_quat_wxyz: the resulting frame_palm pose in the world. tip_targets_m,
-    tip_positions_m: (nfingers, 3) the fingertip targets (scaled, pinch-adjusted operator
-    fingertips) and the achieved pulp sites of ``q``, both in the hand's base frame.
-    tip_errors_m: (nfingers,) their distances. held: this frame repeats the last output, for
+    tip_positions_m: (nfingers, 3) the fingertip targets (the operator's finger pads, scaled,
+    pinch-adjusted and snapped onto the object) and the achieved pulp sites of ``q``, both in
+    the hand's base frame.
+    tip_errors_m: (nfingers,) their distances. snap_moved_m: (nfingers,) how far each target
+    was moved onto the object surface (metres; 0 without an object or out of snap range).
+    held: this frame repeats the last output, for
     ``reason`` (one of :data:`HOLD_REASONS`). time_s: the frame's timestamp (None if unknown).
     The arrays are read-only: a held frame shares them with the frame it repeats.
     """
@@ -44,3 +47,4 @@ class RetargetResult:
     held: bool = False
     reason: str | None = None
     time_s: float | None = None
+    snap_moved_m: Array | None = None

@@ -4,65 +4,59 @@ Why this shape: teleop drives a *floating* robot hand, so the problem splits cle
 The hand's base pose is not solved for at all: it is placed so that the robot's wrist follows
 the operator's wrist (position and orientation, with a configurable offset and motion scale).
 Only the finger joints are solved, by differential IK with mink on the hand-only model
-(``Hand.model``, fixed base), one position-only ``FrameTask`` per fingertip pulp site, a
-``PostureTask`` toward the hand's open pose, a ``ConfigurationLimit`` and solver ``daqp``,
-warm-started from the previous frame (DESIGN §6). The solver settings are ``configs/teleop.toml``
-``[retarget]``; everything hand-specific (which operator joint drives which robot finger, where
-the operator's wrist sits in the robot's palm frame, which side) is the hand's own
+(``Hand.model``, fixed base): one batched position task (:class:`teleop.retarget.tasks.PointsTask`)
+over the fingertip pulp sites and the phalanx keypoints, a ``PostureTask`` toward the hand's
+open pose, a ``ConfigurationLimit`` and solver ``daqp``, warm-started from the previous frame
+(DESIGN §6). The solver settings are ``configs/teleop.toml`` ``[retarget]``; everything
+hand-specific (which operator joint drives which robot finger and phalanx, where the operator's
+wrist sits in the robot's palm frame, which side) is the hand's own
 ``configs/hands/<hand>/retarget.toml`` (:mod:`teleop.retarget.config`); nothing here names a hand.
 
 Frames and correspondence
     The operator's OpenXR WRIST joint frame (after ingest: +x distal along the hand, +z out of
     the back of the hand, see :mod:`teleop.input.frames`) is mapped onto the robot's ``frame_palm``
     (DESIGN §3 and every hand config: +y the palm normal out of the pulp side, +z toward the
-    fingers, x = y × z) by the
-    convention rotation ``x_wrist → z_palm, y_wrist → −x_palm, z_wrist → −y_palm``, then by the
-    per-hand extra rotation ``wrist_rpy_deg``; the operator's wrist point lands on the per-hand
-    point ``wrist_pos_m`` of frame_palm (for the Shadow Hand, its wrist joint). Fingertips are
-    taken relative to the operator's wrist in that frame, scaled by ``scale`` about the wrist
-    point, and become targets in the hand's base frame.
+    fingers, x = y × z) by the convention rotation ``x_wrist → z_palm, y_wrist → −x_palm,
+    z_wrist → −y_palm``, then by the per-hand extra rotation ``wrist_rpy_deg``; the operator's
+    wrist point lands on the per-hand point ``wrist_pos_m`` of frame_palm (for the Shadow Hand,
+    its wrist joint). Operator points are taken relative to the operator's wrist in that frame,
+    scaled by ``scale`` about the wrist point, and become targets in the hand's base frame.
 
-Scale calibration (:meth:`Retargeter.calibrate_scale`)
-    scale = robot length / operator length × ``scale`` (config). The robot length is the
-    straight-line distance from ``wrist_pos_m`` to the pulp site of ``scale_finger`` at the
-    open pose (fingers straight). The operator length is the sum of the bone lengths from the
-    wrist through that finger's OpenXR chain to its tip joint, median over the frames: unlike
-    the wrist-to-tip distance, a bone chain does not change when the operator curls the finger,
-    so any stretch of tracking calibrates, not only flat-hand frames. Palm width was rejected:
-    it is short (≈ 8 cm), so tracking noise weighs more than twice as much, and the hand
-    configs name no knuckle points to measure it on the robot.
+Targets (contact-aware)
+    Each robot pulp site follows the operator's *pad* of its finger (``pad_targets``; the tip
+    joint moved by its radius to the palmar skin, :mod:`teleop.retarget.operator_points`), not
+    the tip joint's centre. Each robot middle/distal phalanx body origin in the hand's
+    ``[phalanges]`` follows its OpenXR intermediate/distal joint at ``phalanx_cost`` (lower
+    than ``fingertip_cost``), so whole-hand wraps and hooks bend the robot's phalanges as well,
+    not only put its fingertips somewhere. Near a thumb–finger pinch the targets are pulled
+    together (:func:`teleop.retarget.operator_points.pinch_adjust`) and a thumb–finger distance
+    task (:class:`teleop.retarget.tasks.PinchTask`, cost ``pinch_cost`` × w) joins the IK.
+    With an object given (:meth:`Retargeter.set_object`), pad targets within
+    ``snap_distance_m`` of its surface, or behind it, are moved onto it
+    (:mod:`teleop.retarget.snap`, :mod:`teleop.retarget.surface`).
 
-Pinch-aware mapping
-    Tracked tip joints sit at the *centre* of the fingertip (OpenXR radius ≈ 7–9 mm to the skin)
-    while the robot's targets are pulp *surface* points, so pure scaling leaves a touching pinch
-    about two radii apart on the robot (≈ 1.6 cm). Below ``pinch_release_gap_m`` of skin gap
-    (tip distance minus both radii) between the thumb and a finger, their targets are pulled
-    together symmetrically: the target distance is d − w·(r_thumb + r_finger) with
-    w = 1 − gap / release, which is continuous and monotonic in d, equals d at the release gap
-    and becomes the skin gap (0 when touching) as the fingers close. This is the usual
-    "pinch snapping" of teleop retargeters, made radius-aware instead of using fixed distances.
-    The thumb is the robot finger driven by OpenXR ``thumb_tip``. Moving the absolute targets
-    is not enough, so while a pair pinches the thumb–finger distance task
-    (:class:`teleop.retarget.tasks.PinchTask`, cost ``pinch_cost`` × w) joins the IK.
+Scale calibration (:mod:`teleop.retarget.calibration`)
+    scale = robot length / operator length × ``scale``. :meth:`Retargeter.calibrate_scale`
+    measures the operator from frames at hand; without it the first ``calibration_s`` of
+    tracking are measured automatically, and :meth:`Retargeter.recalibrate` (the bridge's
+    control) measures the next ones again.
 
 Solver settings
-    One IK iteration per frame suffices with warm starting (2–3 change the errors by < 0.5 mm
-    on the Quest capture, see ``benchmarks/bench_retarget.py``) and keeps the median step near
-    0.5 ms on one core. ``damping`` (1e-3, Levenberg–Marquardt on Δq) is what makes one
-    full Gauss–Newton step per frame stable: with 1e-6 the thumb limit-cycles between two
-    poses around a pinch instead of converging.
+    One IK iteration per frame suffices with warm starting (``benchmarks/bench_retarget.py``);
+    ``damping`` (1e-3, Levenberg–Marquardt on Δq) makes one full Gauss–Newton step per frame
+    stable (with 1e-6 the thumb limit-cycles around a pinch); the output is low-pass filtered
+    (:class:`teleop.retarget.joint_filter.JointFilter`).
 
 Coupled joints and the wrist
-    Coupled joints are QP equality constraints (:class:`teleop.retarget.tasks.CouplingConstraint`);
-    ``Hand.fill_coupled`` then removes the last floating-point drift. Joints of no finger (the
-    Shadow wrist) are frozen at the open pose with mink's ``DofFreezingTask``: the floating base
-    already provides the wrist pose, and letting the IK bend the wrist would move the palm away
-    from the operator's.
+    Coupled joints are QP equality constraints (:class:`teleop.retarget.tasks.CouplingConstraint`).
+    Joints of no finger (the Shadow wrist) are frozen at the open pose (mink's
+    ``DofFreezingTask``): the floating base already provides the wrist pose.
 
 Missing data
     A frame without the hand, an untracked hand, invalid or non-finite wrist/fingertip joints
     or a failed QP solve hold the last output (``held=True``) and count the reason
-    (:attr:`Retargeter.held_counts`); nothing raises in the tracking loop.
+    (:attr:`Retargeter.held_counts`); an invalid phalanx joint only drops its task. Nothing
+    raises in the tracking loop.
 
 Quaternions are wxyz everywhere here; positions metres; joint values radians.
 """
@@ -81,10 +75,15 @@ import numpy as np
 from sim.errors import ConfigError, DexaugError
 from sim.hand.model import Hand
 from sim.transforms import mat_to_quat, pose_inv, pose_mul, pose_mul1, quat_mul, quat_to_mat1
-from teleop.messages import JOINT_INDEX, OPENXR_JOINTS, WRIST, HandFrame, HandState
+from teleop.messages import JOINT_INDEX, WRIST, HandFrame, HandState
+from teleop.retarget.calibration import ScaleCalibration, chain_length_m, operator_chain
 from teleop.retarget.config import WRIST_TO_PALM_CONVENTION, RetargetConfig, load_retarget_config
+from teleop.retarget.joint_filter import JointFilter
+from teleop.retarget.operator_points import pad_points, pinch_adjust
 from teleop.retarget.result import HOLD_REASONS, RetargetResult
-from teleop.retarget.tasks import CouplingConstraint, PinchTask
+from teleop.retarget.snap import snap_to_surface
+from teleop.retarget.surface import ObjectSurface
+from teleop.retarget.tasks import CouplingConstraint, PinchTask, PointsTask
 
 __all__ = ["RetargetError", "Retargeter"]
 
@@ -114,6 +113,11 @@ class Retargeter:
         if unknown:
             raise ConfigError(f"{mapping.file}: fingers: unknown finger(s) {unknown} of hand "
                               f"{hand.name!r}; its fingers are {list(hand.finger_names)}")
+        links = {b for f in hand.config.fingers for b in f.links}
+        bad = sorted(set(mapping.phalanges) - links)
+        if bad:
+            raise ConfigError(f"{mapping.file}: phalanges: {bad} are not finger links of hand "
+                              f"{hand.name!r} (hand.toml [[fingers]] links: {sorted(links)})")
         cfg = self.config
         m = hand.model
         self.model = m
@@ -123,6 +127,11 @@ class Retargeter:
         self._tip_idx = np.array([JOINT_INDEX[mapping.fingers[f]] for f in self.finger_names])
         self._site_ids = np.array([m.site(hand.config.finger(f).site_name).id
                                    for f in self.finger_names])
+        #: Robot bodies whose origins follow operator phalanx joints (none at phalanx_cost 0).
+        self.phalanx_bodies: tuple[str, ...] = (tuple(mapping.phalanges)
+                                                if cfg.phalanx_cost > 0.0 else ())
+        self._phal_idx = np.array([JOINT_INDEX[mapping.phalanges[b]] for b in self.phalanx_bodies],
+                                  dtype=int)
         self._needed = np.concatenate([[WRIST], self._tip_idx])
         thumb = [i for i, f in enumerate(self.finger_names) if mapping.fingers[f] == "thumb_tip"]
         self._thumb_row = thumb[0] if thumb else None
@@ -139,17 +148,14 @@ class Retargeter:
 
         # mink problem, built once and reused every frame
         self.configuration = mink.Configuration(m, self.q_rest)
-        self._tasks: list[mink.FrameTask] = []
-        for sid in self._site_ids:
-            task = mink.FrameTask(int(sid), "site", position_cost=cfg.fingertip_cost,
-                                  orientation_cost=0.0, lm_damping=cfg.task_lm_damping)
-            task.set_target(mink.SE3.identity())
-            self._tasks.append(task)
-        # targets are written in place each frame (no SE3 objects in the loop)
-        self._targets = [t.transform_target_to_world.wxyz_xyz for t in self._tasks]
+        nf, nb = len(self.finger_names), len(self.phalanx_bodies)
+        costs = np.concatenate([np.full(nf, cfg.fingertip_cost), np.full(nb, cfg.phalanx_cost)])
+        self._points = PointsTask(m, [int(s) for s in self._site_ids],
+                                  [m.body(b).id for b in self.phalanx_bodies], costs,
+                                  lm_damping=cfg.task_lm_damping)
         self._posture = mink.PostureTask(m, cost=cfg.posture_cost)
         self._posture.set_target(self.q_rest)
-        self._all_tasks: list[mink.Task] = [*self._tasks, self._posture]
+        self._all_tasks: list[mink.Task] = [self._points, self._posture]
         self._limits = [mink.ConfigurationLimit(m, gain=cfg.limit_gain)]
         self._constraints: list[mink.Task] = []
         if frozen:
@@ -158,9 +164,9 @@ class Retargeter:
         if pairs:
             self._constraints.append(CouplingConstraint(m, pairs))
         self._out_data = mujoco.MjData(m)
+        self._filter = JointFilter(hand, cfg)
         self._pinch_task: PinchTask | None = None
-        if self._thumb_row is not None and cfg.pinch_release_gap_m > 0.0 and len(
-                self._other_rows):
+        if self._thumb_row is not None and cfg.pinch_release_gap_m > 0.0 and len(self._other_rows):
             self._pinch_task = PinchTask(m, int(self._site_ids[self._thumb_row]),
                                          [int(self._site_ids[k]) for k in self._other_rows])
 
@@ -181,21 +187,25 @@ class Retargeter:
         tip_palm = hand.fingertip_sites(self.q_rest, frame="palm")[0, hand.finger_names.index(
             mapping.scale_finger)]
         self.robot_length_m = float(np.linalg.norm(tip_palm - p_pw))
-        self._scale_chain = _operator_chain(mapping.fingers[mapping.scale_finger])
+        self._scale_chain = operator_chain(mapping.fingers[mapping.scale_finger])
+        self._chain_idx = np.array([JOINT_INDEX[j] for j in self._scale_chain])
         self.operator_length_m = cfg.operator_hand_length_m
         self._set_scale()
-        self.held_counts: dict[str, int] = dict.fromkeys(HOLD_REASONS, 0)
+        #: Collecting frames for a scale calibration (None: not calibrating).
+        self.calibration: ScaleCalibration | None = None
+        if cfg.calibration_s > 0.0:
+            self.recalibrate()
+        self.surface: ObjectSurface | None = None
         self.reset()
 
     # ------------------------------------------------------------------------------ state
 
     def reset(self) -> None:
         """Forget the past: IK back to the rest posture, filter empty, hold counts zeroed
-        (the calibrated scale is kept)."""
+        (the calibrated scale, a calibration under way and the object are kept)."""
         self.configuration.update(self.q_rest.copy())
-        self._q_out: Array | None = None
-        self._last_time: float | None = None
-        self.held_counts = dict.fromkeys(HOLD_REASONS, 0)
+        self._filter.reset()
+        self.held_counts: dict[str, int] = dict.fromkeys(HOLD_REASONS, 0)
         self.frames_seen = 0
         nf = len(self.finger_names)
         nan3 = np.full((nf, 3), np.nan)
@@ -203,7 +213,14 @@ class Retargeter:
         self._last = RetargetResult(
             q=self.q_rest.copy(), base_pos_m=np.zeros(3), base_quat_wxyz=np.array([1.0, 0, 0, 0]),
             palm_pos_m=self._p_bp.copy(), palm_quat_wxyz=self._q_bp.copy(), tip_targets_m=nan3,
-            tip_positions_m=nan3.copy(), tip_errors_m=np.full(nf, np.nan), held=True)
+            tip_positions_m=nan3.copy(), tip_errors_m=np.full(nf, np.nan), held=True,
+            snap_moved_m=np.zeros(nf))
+
+    def set_object(self, surface: ObjectSurface | None) -> None:
+        """Snap pad targets onto ``surface`` from the next frame on (None: no object, no
+        snapping). Keep its pose current with :meth:`ObjectSurface.set_pose` (the
+        retargeter's world: the frame of ``base_pos_m``)."""
+        self.surface = surface
 
     def _set_scale(self) -> None:
         self.scale = self.robot_length_m / self.operator_length_m * self.config.scale
@@ -217,32 +234,41 @@ class Retargeter:
     # ------------------------------------------------------------------------- calibration
 
     def calibrate_scale(self, frames: Iterable[HandFrame | HandState]) -> float:
-        """Set the fingertip scale for this operator from tracked frames and return it.
+        """Set the fingertip scale for this operator from tracked frames and return it (a
+        calibration under way is dropped).
 
         The operator length is the median over usable frames of the bone-chain length wrist →
-        ``scale_finger``'s OpenXR tip (see the module docstring for why); frames missing the
-        hand or any chain joint are skipped. Raises :class:`RetargetError` when none is usable.
+        ``scale_finger``'s OpenXR tip (:mod:`teleop.retarget.calibration`); frames missing
+        the hand or any chain joint are skipped. Raises :class:`RetargetError` when none is
+        usable.
         """
         lengths = []
-        idx = np.array([JOINT_INDEX[j] for j in self._scale_chain])
         for item in frames:
             hs = item.hand(self.mapping.side) if isinstance(item, HandFrame) else item
-            if hs is None or not hs.tracked or not hs.valid[idx].all():
-                continue
-            pts = hs.positions[idx]
-            if not np.isfinite(pts).all():
-                continue
-            lengths.append(float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum()))
+            length = chain_length_m(hs, self._chain_idx)
+            if length is not None:
+                lengths.append(length)
         if not lengths:
             raise RetargetError(f"cannot calibrate the scale: no frame has a tracked "
                                 f"{self.mapping.side} hand with valid joints "
                                 f"{list(self._scale_chain)}")
-        self.operator_length_m = float(np.median(lengths))
+        self.calibration = None
+        self._set_operator_length(float(np.median(lengths)), len(lengths))
+        return self.scale
+
+    def recalibrate(self, duration_s: float | None = None) -> None:
+        """Measure the operator again over the next ``duration_s`` (default ``calibration_s``)
+        of tracking; the current scale stays in use until then (the bridge's control)."""
+        duration = self.config.calibration_s if duration_s is None else float(duration_s)
+        self.calibration = ScaleCalibration(self._chain_idx, duration, self.config.dt_s)
+        logger.info("scale calibration: measuring the next %.2f s of tracking", duration)
+
+    def _set_operator_length(self, length_m: float, frames: int) -> None:
+        self.operator_length_m = length_m
         self._set_scale()
         logger.info("scale calibrated from %d frames: operator %s length %.4f m, robot %.4f m, "
-                    "scale %.4f", len(lengths), self._scale_chain[-1], self.operator_length_m,
+                    "scale %.4f", frames, self._scale_chain[-1], self.operator_length_m,
                     self.robot_length_m, self.scale)
-        return self.scale
 
     # ----------------------------------------------------------------------------- per frame
 
@@ -253,6 +279,9 @@ class Retargeter:
     def step(self, hand: HandState | None, time_s: float | None = None) -> RetargetResult:
         """Retarget one tracking sample (None: the hand is absent from this frame)."""
         self.frames_seen += 1
+        if self.calibration is not None and (length := self.calibration.feed(hand, time_s)):
+            self._set_operator_length(length, len(self.calibration.lengths))
+            self.calibration = None
         if hand is None:
             return self._hold("no_hand", time_s)
         if not hand.tracked:
@@ -261,7 +290,7 @@ class Retargeter:
         need = self._needed
         q_w = hand.orientations_wxyz[WRIST]
         if not (hand.valid[need].all() and np.isfinite(pos[need]).all()
-                and np.isfinite(q_w).all()):
+                and np.isfinite(q_w).all() and np.isfinite(hand.orientations_wxyz[need]).all()):
             return self._hold("invalid_joints", time_s)
         norm = math.sqrt(float(q_w @ q_w))
         if norm < 0.5:
@@ -269,13 +298,24 @@ class Retargeter:
         q_w = q_w / norm
         r_w = quat_to_mat1(q_w)
         p_w = pos[WRIST]
-        rel = (pos[self._tip_idx] - p_w) @ r_w        # fingertips in the operator wrist frame
+        tips = self._tip_idx
+        radii = hand.radii[tips]
+        centres = (pos[tips] - p_w) @ r_w             # fingertips in the operator wrist frame
+        rel = ((pad_points(pos[tips], hand.orientations_wxyz[tips], radii) - p_w) @ r_w
+               if self.config.pad_targets else centres)
         pinch = None
         if self._pinch_task is not None:
-            rel, pinch = self._pinch(rel, hand.radii[self._tip_idx])
+            rel, pinch = pinch_adjust(rel, centres, radii, self._thumb_row, self._other_rows,
+                                      self.config.pinch_release_gap_m)
         targets = self._p_bw + rel @ self._m_wb       # base frame, scaled about the wrist
+        wrist_world = self.config.world_offset_m + self.config.wrist_position_scale * p_w
+        base_p, base_q = pose_mul1(wrist_world, r_w, q_w, self._p_wb, self._q_wb)
+        moved = np.zeros(len(targets))
+        if self.surface is not None and self.config.snap_distance_m > 0.0:
+            targets, moved = self._snap(targets, base_p, base_q)
+        phal = self._phalanx_targets(hand, p_w, r_w)
 
-        q_ik = self._solve(targets, pinch)
+        q_ik = self._solve(targets, phal, pinch)
         if q_ik is None:
             return self._hold("solver_failed", time_s)
 
@@ -283,52 +323,53 @@ class Retargeter:
         data = self._out_data
         data.qpos[:] = q_out
         mujoco.mj_kinematics(self.model, data)
-        tips = data.site_xpos[self._site_ids].copy()
-        wrist_world = self.config.world_offset_m + self.config.wrist_position_scale * p_w
+        tip_pos = data.site_xpos[self._site_ids].copy()
         palm_p, palm_q = pose_mul1(wrist_world, r_w, q_w, self._p_wp, self._q_wp)
-        base_p, base_q = pose_mul1(wrist_world, r_w, q_w, self._p_wb, self._q_wb)
-        errors = np.linalg.norm(tips - targets, axis=1)
-        for arr in (q_out, base_p, base_q, palm_p, palm_q, targets, tips, errors):
+        errors = np.linalg.norm(tip_pos - targets, axis=1)
+        for arr in (q_out, base_p, base_q, palm_p, palm_q, targets, tip_pos, errors, moved):
             arr.setflags(write=False)  # results are shared by held frames: read-only
         self._last = RetargetResult(
             q=q_out, base_pos_m=base_p, base_quat_wxyz=base_q, palm_pos_m=palm_p,
-            palm_quat_wxyz=palm_q, tip_targets_m=targets, tip_positions_m=tips,
-            tip_errors_m=errors, held=False, reason=None, time_s=time_s)
+            palm_quat_wxyz=palm_q, tip_targets_m=targets, tip_positions_m=tip_pos,
+            tip_errors_m=errors, held=False, reason=None, time_s=time_s, snap_moved_m=moved)
         return self._last
 
-    def _pinch(self, rel: Array, radii: Array) -> tuple[Array, Array | None]:
-        """Pull thumb and finger targets together below the release skin gap (module
-        docstring); also the pinch weight w per non-thumb finger (None when none pinches)."""
-        th = self._thumb_row
-        others = self._other_rows
-        v = rel[others] - rel[th]
-        d = np.sqrt(np.einsum("ij,ij->i", v, v))
-        r_sum = radii[others] + radii[th]
-        if not np.isfinite(r_sum).all():             # no radius: use the centre distance
-            r_sum = np.where(np.isfinite(r_sum), r_sum, 0.0)
-        gap = d - r_sum
-        w = np.clip(1.0 - gap / self.config.pinch_release_gap_m, 0.0, 1.0)
-        active = w > 0.0
-        if not active.any():
-            return rel, None
-        d_new = np.maximum(d - w * r_sum, 0.0)
-        half = np.where(d > 1e-9, 0.5 * (d - d_new) / np.maximum(d, 1e-9), 0.0)
-        delta = v * half[:, None]                     # move each finger half the way
-        rel = rel.copy()
-        rel[others] -= delta
-        rel[th] += delta.sum(axis=0) / int(active.sum())
-        return rel, w
+    def _snap(self, targets: Array, base_p: Array, base_q: Array) -> tuple[Array, Array]:
+        """Pad targets (base frame) snapped onto the object surface (:mod:`teleop.retarget.snap`)
+        and how far each moved (metres)."""
+        assert self.surface is not None
+        cfg = self.config
+        r_b = quat_to_mat1(base_q)
+        world = base_p + targets @ r_b.T
+        _, normals, signed = self.surface.query(world)
+        world, moved = snap_to_surface(world, normals, signed, cfg.snap_distance_m)
+        return (world - base_p) @ r_b, moved
 
-    def _solve(self, targets: Array, pinch: Array | None) -> Array | None:
-        """A few mink IK iterations toward ``targets`` (base frame), warm-started, with the
-        thumb–finger task weighted by the pinch weights ``pinch`` when given; the new joint
-        vector, or None when the QP fails (the IK state is then restored)."""
+    def _phalanx_targets(self, hand: HandState, p_w: Array, r_w: Array) -> Array | None:
+        """Phalanx keypoint targets (base frame) of this frame; their costs are zeroed where
+        the operator joint is invalid (None: no phalanx tasks)."""
+        if not len(self._phal_idx):
+            return None
+        pts = hand.positions[self._phal_idx]
+        ok = hand.valid[self._phal_idx] & np.isfinite(pts).all(axis=1)
+        nf = len(self.finger_names)
+        self._points.cost[3 * nf:] = np.repeat(np.where(ok, self.config.phalanx_cost, 0.0), 3)
+        rel = (np.where(ok[:, None], pts, p_w) - p_w) @ r_w
+        return self._p_bw + rel @ self._m_wb
+
+    def _solve(self, targets: Array, phal: Array | None, pinch: Array | None) -> Array | None:
+        """A few mink IK iterations toward the pulp ``targets`` and phalanx targets ``phal``
+        (base frame), warm-started, with the thumb–finger task weighted by the pinch weights
+        ``pinch`` when given; the new joint vector, or None when the QP fails (the IK state is
+        then restored)."""
         cfg = self.config
         conf = self.configuration
         data = conf.data
         q_before = data.qpos.copy()
-        for t, tgt in zip(self._targets, targets, strict=True):
-            t[4:] = tgt
+        nf = len(targets)
+        self._points.target_m[:nf] = targets
+        if phal is not None:
+            self._points.target_m[nf:] = phal
         tasks = self._all_tasks
         if pinch is not None and self._pinch_task is not None:
             diff = targets[self._other_rows] - targets[self._thumb_row]
@@ -337,10 +378,6 @@ class Retargeter:
             tasks = [*self._all_tasks, self._pinch_task]
         try:
             for _ in range(cfg.iterations):
-                # target orientation := current site orientation, so that with orientation
-                # cost 0 the task error is exactly the position error (no se(3) log coupling)
-                for t, sid in zip(self._targets, self._site_ids, strict=True):
-                    mujoco.mju_mat2Quat(t[:4], data.site_xmat[sid])
                 v = mink.solve_ik(conf, tasks, cfg.dt_s, cfg.solver,
                                   damping=cfg.damping, limits=self._limits,
                                   constraints=self._constraints)
@@ -356,36 +393,8 @@ class Retargeter:
             return None
         return q
 
-    def _filter(self, q_ik: Array, time_s: float | None) -> Array:
-        """First-order low-pass on the joint vector, then coupling and limits exactly."""
-        cfg = self.config
-        if self._q_out is None:
-            q = q_ik
-        else:
-            if cfg.filter_alpha is not None:
-                alpha = cfg.filter_alpha
-            else:
-                tau = cfg.filter_time_constant_s or 0.0
-                dt = (time_s - self._last_time if time_s is not None
-                      and self._last_time is not None and time_s > self._last_time
-                      else cfg.dt_s)
-                alpha = 1.0 if tau <= 0.0 else 1.0 - math.exp(-dt / tau)
-            q = self._q_out + alpha * (q_ik - self._q_out)
-        q = self.hand.fill_coupled(self.hand.clip(q))
-        self._q_out = q
-        if time_s is not None:
-            self._last_time = time_s
-        return q
-
     def _hold(self, reason: str, time_s: float | None) -> RetargetResult:
+        """The last output again, marked held for ``reason`` (counted)."""
         self.held_counts[reason] += 1
         logger.debug("frame held (%s)", reason)
         return replace(self._last, held=True, reason=reason, time_s=time_s)
-
-
-def _operator_chain(tip_joint: str) -> tuple[str, ...]:
-    """OpenXR joints from the wrist along ``tip_joint``'s finger up to it (e.g. wrist,
-    middle_metacarpal, …, middle_tip)."""
-    prefix = tip_joint.rsplit("_", 1)[0] + "_"
-    chain = [j for j in OPENXR_JOINTS[:JOINT_INDEX[tip_joint] + 1] if j.startswith(prefix)]
-    return ("wrist", *chain)
