@@ -36,7 +36,8 @@ import zenoh
 PREFIX = "dexaug"
 CONTROL_COMMANDS: tuple[str, ...] = ("start_recording", "stop_recording", "choose_object",
                                      "reset_object", "set_object_mode", "set_object_rest",
-                                     "next_object_rest", "mark_grasp", "status")
+                                     "next_object_rest", "recalibrate_scale", "mark_grasp",
+                                     "status")
 
 
 class KeyError_(ValueError):

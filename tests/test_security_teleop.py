@@ -485,3 +485,17 @@ def test_the_cli_flags_default_to_loopback_and_a_random_token():
     from teleop.input.background_server import WebIngestError
     with pytest.raises(WebIngestError, match="token: expected at least 8"):
         access_policy("0.0.0.0", "short")
+
+
+def test_zenoh_recalibrate_scale_takes_a_bounded_duration_only(rig):
+    """``recalibrate_scale`` (#18: redo the operator's scale calibration) from a remote caller:
+    a duration in (0, 10] s or none; anything else refused in one line, nothing started."""
+    rig.bridge.retargeter.calibration = None
+    for payload in ({"duration_s": 0}, {"duration_s": 99}, {"duration_s": "1"},
+                    {"duration_s": True}, {"path": "/tmp/x"}):
+        reply = rig.query("recalibrate_scale", payload)
+        assert not reply["ok"] and "\n" not in reply["error"], payload
+        assert rig.bridge.retargeter.calibration is None
+    reply = rig.query("recalibrate_scale", {"duration_s": 0.5})
+    assert reply["ok"] and reply["duration_s"] == 0.5
+    assert rig.bridge.retargeter.calibration is not None

@@ -19,7 +19,7 @@ from rich.progress import Progress
 from rich.table import Table
 from rich.text import Text
 
-from dexaug.commands.argtypes import count, free_port, port, positive, rate, rig_name
+from dexaug.commands.argtypes import count, free_port, int_at_least, port, positive, rate, rig_name
 from dexaug.commands.network import require_free_port, zenoh_message
 from dexaug.commands.options import hand_arg
 from dexaug.commands.registry import command
@@ -187,6 +187,12 @@ def _bridge_args(p: argparse.ArgumentParser) -> None:
                    help="demo: the object settles on the table and is held while you grasp (the "
                    "paper's demonstration mode); free: lift it for real (default: "
                    "configs/teleop.toml [bridge] object_mode, demo)")
+    p.add_argument("--object-rest", type=int_at_least(0), metavar="N",
+                   help="lay the object in its resting pose N (0: the most frequent one from a "
+                   "drop; poses computed in MuJoCo and cached; default: upright)")
+    p.add_argument("--object-yaw-deg", type=float, metavar="DEG",
+                   help="--object-rest: turn about the table normal (degrees; default: the "
+                   "config's object_yaw_deg)")
     p.add_argument("--web", action="store_true",
                    help="also serve the headset page (WebXR) and its WebSocket ingest")
     p.add_argument("--web-port", type=free_port, default=8443,
@@ -235,7 +241,8 @@ def bridge(args: argparse.Namespace, console: Console) -> int:
                                connect_ports=tuple(args.connect) + extra_ports,
                                duration_s=args.duration, record=args.record,
                                view=False if args.no_view else None,
-                               object_mode=args.object_mode, on_recording_closed=hook)
+                               object_mode=args.object_mode, object_rest=args.object_rest,
+                               object_yaw_deg=args.object_yaw_deg, on_recording_closed=hook)
         except zenoh.ZError as exc:   # e.g. --listen taken by another process in the meantime
             raise NetworkError(f"zenoh failed (bridge --listen {args.listen}): "
                                f"{zenoh_message(exc)}") from None

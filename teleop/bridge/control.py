@@ -51,7 +51,6 @@ from __future__ import annotations
 import json
 import logging
 import queue
-import re
 import threading
 import time
 from collections import Counter
@@ -63,8 +62,7 @@ import numpy as np
 import zenoh
 
 from sim.hand.model import Hand
-from sim.world.objects import one_line, ycb_folders
-from sim.world.primitives import PRIMITIVES
+from sim.world.objects import one_line
 from sim.world.scene import Scene
 from teleop import keys as zkeys
 from teleop.bridge.config import BridgeConfig, check_object_mode
@@ -76,13 +74,14 @@ from teleop.bridge.object_mode import (
     scene_rest_poses,
     table_record,
 )
+from teleop.bridge.remote_args import calibration_seconds, recording_file, remote_args
 from teleop.bridge.view_stream import ViewStream
 from teleop.record.contact_record import ContactRecord
 from teleop.record.recorder import SessionRecorder
 from teleop.record.session_file import RecordingFailed
 from teleop.retarget.retargeter import Retargeter
 
-__all__ = ["COMMANDS", "BridgeControl", "recording_file", "remote_args"]
+__all__ = ["COMMANDS", "BridgeControl"]
 
 logger = logging.getLogger(__name__)
 Array = np.ndarray
@@ -93,67 +92,6 @@ COMMANDS: tuple[str, ...] = zkeys.CONTROL_COMMANDS
 #: when the build fails
 _SCENE_STATE = ("scene", "object_name", "_tip_fingers", "_object_home", "placement", "object_rest",
                 "object_rest_yaw_deg")
-_OBJECT_ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,99}")
-_NAME_MAX_CHARS = 100
-_MAX_SUFFIX = 1000
-
-
-def installed_object(name: object) -> str:
-    """``name`` if it is an object id of the installed catalogue: a primitive, a YCB folder
-    (``004_sugar_box``) or its unique id/name (``004``, ``sugar_box``); ValueError otherwise,
-    before any file is opened."""
-    text = str(name)
-    if not _OBJECT_ID.fullmatch(text):
-        raise ValueError(f"choose_object: object {one_line(text)[:80]!r} is not an object id "
-                         "(letters, digits, '_', '-'); a remote caller picks from the installed "
-                         "catalogue, never a file")
-    if text in PRIMITIVES:
-        return text
-    folders = [f.name for f in ycb_folders()]
-    matches = [f for f in folders if f == text or f.startswith(f"{text}_") or f[4:] == text]
-    if text in folders or len(matches) == 1:
-        return text
-    raise ValueError(f"choose_object: {text!r} is not an installed object (primitives: "
-                     f"{', '.join(PRIMITIVES)}; {len(folders)} YCB objects"
-                     f"{' (ambiguous: ' + ', '.join(matches) + ')' if matches else ''})")
-
-
-def remote_args(command: str, args: dict[str, Any]) -> dict[str, Any]:
-    """The arguments of an untrusted (zenoh) call of ``command``, checked (module docstring);
-    ValueError names what is refused."""
-    if command == "start_recording":
-        refused = sorted(k for k in args if k != "name")
-        if refused:
-            raise ValueError(f"start_recording: {refused} not accepted from a remote caller; "
-                             "pass a 'name' (the file goes into the recordings folder, never "
-                             "over an existing one)")
-        if "name" in args and not isinstance(args["name"], str):
-            raise ValueError("start_recording: 'name' must be a string")
-    elif command == "choose_object":
-        args = {**args, "object": installed_object(args.get("object"))}
-        rest_request(command, args)
-    elif command == "set_object_rest":
-        rest_request(command, args, only_rest=True)
-    return args
-
-
-def recording_file(folder: Path, name: str) -> Path:
-    """A new ``.mcap`` file in ``folder`` named after ``name`` reduced to a plain file name
-    (directories dropped, characters other than letters, digits, ``.``, ``_``, ``-`` replaced,
-    no leading dot, at most 100 characters); ``_2``, ``_3``… is added while the name is taken."""
-    base = Path(name.replace("\\", "/")).name
-    stem = re.sub(r"[^A-Za-z0-9._-]", "_", base).lstrip(".")
-    stem = stem[:-len(".mcap")] if stem.lower().endswith(".mcap") else stem
-    stem = stem[:_NAME_MAX_CHARS].rstrip(".")
-    if not stem:
-        raise ValueError(f"start_recording: name {one_line(name)[:80]!r} has no usable file name "
-                         "characters (letters, digits, '.', '_', '-')")
-    for k in range(1, _MAX_SUFFIX + 1):
-        path = folder / (f"{stem}.mcap" if k == 1 else f"{stem}_{k}.mcap")
-        if not path.exists() and not path.is_symlink():
-            return path
-    raise ValueError(f"start_recording: {folder}: {stem}.mcap and {_MAX_SUFFIX - 1} suffixed "
-                     "names are taken")
 
 
 class _Pending:
@@ -373,6 +311,14 @@ class BridgeControl:
         self._event("object_reset", {"object": self.object_name, "previous": previous,
                                      **placement.to_json()})
         return {"object_mode": mode, "changed": True}
+
+    def _cmd_recalibrate_scale(self, args: dict[str, Any]) -> dict[str, Any]:
+        """Measure the operator's hand scale again over the next seconds of tracking (the
+        current scale stays in use until then)."""
+        duration = calibration_seconds(args)
+        self.retargeter.recalibrate(duration)
+        return {"duration_s": duration if duration is not None
+                else self.retargeter.config.calibration_s}
 
     def _cmd_mark_grasp(self, args: dict[str, Any]) -> dict[str, Any]:
         fingers = sorted({c.finger for c in self._last_contacts if c.finger})

@@ -24,12 +24,14 @@ def bridge_main(hand: str, obj: str | None = None, rig: str = "local", *,
                 config_path: Path | str | None = None, listen_port: int | None = 7447,
                 connect_ports: tuple[int, ...] = (), duration_s: float | None = None,
                 record: Path | str | None = None, view: bool | None = None,
-                object_mode: str | None = None,
+                object_mode: str | None = None, object_rest: int | None = None,
+                object_yaw_deg: float | None = None,
                 on_recording_closed: Callable[[Path], None] | None = None) -> int:
     """``dexaug bridge``: run a bridge until Ctrl-C (or ``duration_s``); ``object_mode``
-    ("demo" or "free") overrides the config's; ``record`` starts a recording at that path right
-    away; ``on_recording_closed(path)`` runs after each recording is closed (e.g. to augment
-    it). Returns a process exit code."""
+    ("demo" or "free") overrides the config's; ``object_rest`` lays the object in that resting
+    pose (:mod:`sim.world.resting`, best first; ``object_yaw_deg`` about the table normal);
+    ``record`` starts a recording at that path right away; ``on_recording_closed(path)`` runs
+    after each recording is closed (e.g. to augment it). Returns a process exit code."""
     cfg = load_bridge_config(config_path)
     if view is not None:
         cfg.view_enabled = view
@@ -37,6 +39,13 @@ def bridge_main(hand: str, obj: str | None = None, rig: str = "local", *,
         cfg.object_mode = check_object_mode(object_mode, "--object-mode")
     with Bridge(hand, obj, rig, cfg, listen_port=listen_port, connect_ports=tuple(connect_ports),
                 on_recording_closed=on_recording_closed) as bridge:
+        if object_rest is not None:
+            rest = {"rest": object_rest, **({} if object_yaw_deg is None
+                                            else {"yaw_deg": object_yaw_deg})}
+            reply = bridge.control("set_object_rest", rest)
+            if not reply["ok"]:
+                logger.error("--object-rest %d: %s", object_rest, reply["error"])
+                return 2
         if record is not None:
             bridge.control("start_recording", {"path": str(record)})
         logger.info("bridge %s: hands on %s, state on %s, control on %s, object mode %s", rig,

@@ -29,7 +29,7 @@ from sim.transforms import quat_to_mat
 from teleop import keys as zkeys
 from teleop.bridge.bridge import Bridge
 from teleop.bridge.config import BridgeConfig, load_bridge_config
-from teleop.bridge.session_mode import session_config
+from teleop.bridge.session_mode import session_config, session_object_rest
 from teleop.record.replay import hands_publisher, play
 from teleop.record.schemas import TOPIC_HANDS
 from teleop.record.session import Session, open_session
@@ -100,6 +100,11 @@ def rerecord(src_path: Path | str, out_path: Path | str, *, hand: str | None = N
         client = zkeys.open_session(connect_ports=[port])
         try:
             bridge.start()
+            if (rest := session_object_rest(src.metadata, src_path)) is not None:
+                reply = bridge.control("set_object_rest", rest)   # the object as it lay
+                if not reply["ok"]:
+                    raise RerecordError(f"{src_path}: cannot place the object as recorded: "
+                                        f"{reply['error']}")
             bridge.control("start_recording", {"path": str(tmp), "overwrite": True})
             pub = hands_publisher(client, rig, 5.0)
             try:

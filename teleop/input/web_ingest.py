@@ -71,7 +71,7 @@ logger = logging.getLogger(__name__)
 
 #: Control commands the page may send (the rest of the control API stays on zenoh).
 PAGE_COMMANDS = ("start_recording", "stop_recording", "mark_grasp", "reset_object",
-                 "next_object_rest")
+                 "next_object_rest", "recalibrate_scale")
 #: the arguments each page command may carry (anything else is refused, never forwarded): a
 #: remote caller names a recording, it never chooses a path or overwrites a file
 PAGE_ARGS: dict[str, tuple[str, ...]] = {"start_recording": ("name",)}

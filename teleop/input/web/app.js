@@ -65,6 +65,7 @@ function updateHud() {
   const usable = link.state === 'connected';
   $('record').disabled = !usable;
   $('mark').disabled = !usable;
+  $('rest').disabled = !usable;
   panel.dirty = true;
 }
 
@@ -480,6 +481,7 @@ async function enterVR() {
 async function main() {
   $('record').onclick = toggleRecording;
   $('mark').onclick = () => control('mark_grasp');
+  $('rest').onclick = () => control('next_object_rest');
   $('enter').onclick = enterVR;
   setInterval(updateHud, 500);
   const emulate = params.get('emulate');
