@@ -10,6 +10,10 @@ composition goes through ``mujoco.MjSpec``; no XML strings are pasted together.
 teleop demonstration mode holds the settled object fixed while the operator grasps it (an
 imperfect approach cannot knock it away), and contacts and contact forces work as before. A
 scene built without it has no such constraint at all, so its physics is unchanged.
+
+``floor_z_m`` adds a floor plane at that height (metres; below the table top): the teleop
+bridge's object that falls off the table lands on it instead of falling forever. Off by
+default: the validation scenes have none.
 """
 
 from __future__ import annotations
@@ -73,7 +77,8 @@ class Scene:
     hand's position servos (gains, force and control limits). ``floating_palm`` makes the palm
     body the floating root: the joints on and above it are gone (the benchmark's wrist-less
     hand). ``object_mass_kg`` rescales the object's mass and inertia to that mass (centre of
-    mass unchanged, as a uniform change of density does). Joint vectors and controls given to
+    mass unchanged, as a uniform change of density does). ``floor_z_m``: a floor plane at that
+    height (module docstring). Joint vectors and controls given to
     a scene always hold all of the hand model's joints (``Hand.joint_names``); a joint the
     scene does not have is ignored.
     """
@@ -82,7 +87,8 @@ class Scene:
                  contact: ContactParams | None = None,
                  physics: PhysicsOptions | None = None, servos: ServoSettings | None = None,
                  floating_palm: bool = False, object_mass_kg: float | None = None,
-                 contact_on_hand: bool = False, object_hold: bool = False) -> None:
+                 contact_on_hand: bool = False, object_hold: bool = False,
+                 floor_z_m: float | None = None) -> None:
         self.hand = hand
         self.obj = obj
         self.table = table
@@ -92,6 +98,7 @@ class Scene:
         self.floating_palm = floating_palm
         self.contact_on_hand = contact_on_hand
         self.object_hold = object_hold and obj is not None
+        self.floor_z_m = floor_z_m
         self.model = self._compose().compile()
         self.data = mujoco.MjData(self.model)
         self._index()
@@ -163,6 +170,11 @@ class Scene:
                 name="table", type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.5, 0.5, 0.02],
                 pos=[0.0, 0.0, TABLE_TOP_Z - 0.02], rgba=[0.55, 0.45, 0.35, 1.0],
                 friction=list(self.contact.friction), solref=list(self.contact.solref))
+        if self.floor_z_m is not None:   # a plane collides everywhere; its size is what is drawn
+            world.worldbody.add_geom(
+                name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[2.0, 2.0, 0.05],
+                pos=[0.0, 0.0, self.floor_z_m], rgba=[0.35, 0.35, 0.38, 1.0],
+                friction=list(self.contact.friction), solref=list(self.contact.solref))
         target = "obj/object" if self.obj is not None else "hand_base"
         world.worldbody.add_camera(name="overview", pos=[0.45, -0.45, 0.65],
                                    mode=mujoco.mjtCamLight.mjCAMLIGHT_TARGETBODY,
@@ -221,6 +233,7 @@ class Scene:
         else:
             self.obj_geom_mask = np.zeros(m.ngeom, bool)
         self.table_geom = m.geom("table").id if self.table else -1
+        self.floor_geom = m.geom("floor").id if self.floor_z_m is not None else -1
         self._hold_eq = m.equality(_HOLD).id if self.object_hold else -1
 
     # ---------------------------------------------------------------------------------- driving

@@ -23,8 +23,9 @@ Recording (``start_recording``): raw ``/hands`` as received, and per published s
 they happen at, so demo extraction can pair and time them on the simulation's own clock.
 
 Faults (:mod:`teleop.bridge.faults`): a recorder write error stops the recording, the loop goes
-on; the hand base moves at most ``hand_max_step_m`` per frame; an unstable simulation (MuJoCo
-reset its data) is restored, the simulated clock never going backwards — each with an event.
+on; the hand base moves at most ``hand_max_step_m`` per frame, entering without hand–object
+contacts (:mod:`teleop.bridge.entry`); an unstable simulation (MuJoCo reset its data) is restored,
+the simulated clock never going backwards; an object off the table is put back — with events.
 
 Output: ``/state`` JSON (``seq`` of the frame answered — latency measurements match on it —,
 sim time, simulated and retargeted qpos, palm and object poses, hand–object contacts) at most
@@ -149,13 +150,14 @@ class Bridge(BridgeFaults, BridgeControl):
 
     def _build_scene(self, object_name: str) -> None:
         obj = load_object(object_name)
-        self.scene = Scene(self.hand, obj, table=self.config.table, object_hold=True,
+        floor_z_m = float(self.config.world_offset_m[2]) if self.config.floor else None  # operator's
+        self.scene = Scene(self.hand, obj, table=self.config.table, object_hold=True, floor_z_m=floor_z_m,
                            physics=PhysicsOptions(timestep_s=self.config.timestep_s))
         self.object_name = object_name
         self._tip_fingers = tip_finger_bodies(self.scene)
         self._object_home = self._home_pose(obj)
-        q = getattr(self, "_q_target", None)
-        q = self.hand.open_pose if q is None else q
+        self._attach_surface(obj)
+        q = self.hand.open_pose if getattr(self, "_q_target", None) is None else self._q_target
         self.scene.set_hand_joints(q)
         self.scene.set_hand_ctrl(q)
         self._park_hand()  # above the table until the first frame arrives
@@ -224,7 +226,7 @@ class Bridge(BridgeFaults, BridgeControl):
             return item
 
     def _apply(self, frame: HandFrame) -> None:
-        res = self.retargeter.step_frame(frame)
+        res = self._retarget(frame)   # with the object's surface where it is now
         self._last_result, self._last_frame, self._last_seq = res, frame, int(frame.seq)
         self._q_target = np.asarray(res.q, float)
         base = np.asarray(res.base_pos_m, float) + self.config.world_offset_m

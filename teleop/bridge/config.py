@@ -31,7 +31,9 @@ _BRIDGE_KEYS = {"state_rate_hz", "view_enabled", "view_rate_hz", "view_max_duty"
                 "jpeg_quality", "world_offset_m", "object", "object_pos_m", "object_yaw_deg",
                 "table", "object_mode", "settle_speed_mps", "settle_still_s",
                 "settle_timeout_s", "timestep_s", "max_catchup_steps", "steps_per_frame", "recordings_dir",
-                "deterministic", "hand_max_step_m"}
+                "deterministic", "hand_max_step_m", "floor", "entry_gap_s", "entry_arrive_m",
+                "entry_arrive_deg", "object_reset_below_m", "object_reset_beyond_m",
+                "object_reset_after_s"}
 
 
 @dataclass
@@ -62,6 +64,21 @@ class BridgeConfig:
     deterministic: bool = False
     #: metres per processed frame the hand base may move at most (teleop.bridge.faults)
     hand_max_step_m: float = 0.1
+    #: a floor plane at the operator's floor (``world_offset_m`` z, below the table top)
+    floor: bool = True
+    #: the hand enters again (hand–object contacts off, teleop.bridge.entry) after a tracking
+    #: gap longer than this (seconds, the sender's clock); it has entered once its base is
+    #: within ``entry_arrive_m`` (metres) and ``entry_arrive_deg`` (degrees) of the operator's
+    entry_gap_s: float = 0.2
+    entry_arrive_m: float = 0.01
+    entry_arrive_deg: float = 5.0
+    #: the object has left the table when its centre of mass is more than
+    #: ``object_reset_below_m`` below the table top or ``object_reset_beyond_m`` past its edge
+    #: (metres); after ``object_reset_after_s`` (simulated seconds) off it, it is placed again
+    #: (teleop.bridge.object_watch)
+    object_reset_below_m: float = 0.05
+    object_reset_beyond_m: float = 0.1
+    object_reset_after_s: float = 1.0
 
 
 def load_bridge_config(path: Path | str | None = None) -> BridgeConfig:
@@ -75,6 +92,11 @@ def load_bridge_config(path: Path | str | None = None) -> BridgeConfig:
     rec_dir = Path(sec.str("recordings_dir", str(d.recordings_dir)))
     if not rec_dir.is_absolute():
         rec_dir = path.parent.parent / rec_dir  # relative to the repository root
+    offset = np.array(sec.floats("world_offset_m", 3, list(d.world_offset_m)))
+    floor = sec.bool("floor", d.floor)
+    if floor and offset[2] >= 0.0:
+        raise ConfigError(f"{sec.where('floor')}: the floor lies at world_offset_m z = "
+                          f"{offset[2]:g} m, expected below the table top (z < 0), or floor = false")
     return BridgeConfig(
         file=path,
         state_rate_hz=sec.float("state_rate_hz", d.state_rate_hz, min=1e-3),
@@ -84,7 +106,7 @@ def load_bridge_config(path: Path | str | None = None) -> BridgeConfig:
         view_width=sec.int("view_width", d.view_width, min=16),
         view_height=sec.int("view_height", d.view_height, min=16),
         jpeg_quality=sec.int("jpeg_quality", d.jpeg_quality, min=1),
-        world_offset_m=np.array(sec.floats("world_offset_m", 3, list(d.world_offset_m))),
+        world_offset_m=offset,
         object=sec.str("object", d.object),
         object_pos_m=np.array(sec.floats("object_pos_m", 2, list(d.object_pos_m))),
         object_yaw_deg=sec.float("object_yaw_deg", d.object_yaw_deg),
@@ -100,6 +122,14 @@ def load_bridge_config(path: Path | str | None = None) -> BridgeConfig:
         recordings_dir=rec_dir,
         deterministic=sec.bool("deterministic", d.deterministic),
         hand_max_step_m=sec.float("hand_max_step_m", d.hand_max_step_m, min=1e-4),
+        floor=floor,
+        entry_gap_s=sec.float("entry_gap_s", d.entry_gap_s, min=0.0),
+        entry_arrive_m=sec.float("entry_arrive_m", d.entry_arrive_m, min=1e-4),
+        entry_arrive_deg=sec.float("entry_arrive_deg", d.entry_arrive_deg, min=0.01, max=180.0),
+        object_reset_below_m=sec.float("object_reset_below_m", d.object_reset_below_m, min=0.0),
+        object_reset_beyond_m=sec.float("object_reset_beyond_m", d.object_reset_beyond_m,
+                                        min=0.0),
+        object_reset_after_s=sec.float("object_reset_after_s", d.object_reset_after_s, min=0.0),
     )
 
 

@@ -91,7 +91,7 @@ COMMANDS: tuple[str, ...] = zkeys.CONTROL_COMMANDS
 #: the bridge attributes a scene build sets: saved before ``choose_object`` builds, restored
 #: when the build fails
 _SCENE_STATE = ("scene", "object_name", "_tip_fingers", "_object_home", "placement", "object_rest",
-                "object_rest_yaw_deg")
+                "object_rest_yaw_deg", "_surface")
 
 
 class _Pending:

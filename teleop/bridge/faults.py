@@ -17,8 +17,9 @@ recording) — and each needs the same three answers: keep the loop going, say w
   held: a one-frame glitch moves the hand at most that far and back, a real relocation
   (tracking regained elsewhere) is caught up at that speed, and a non-finite base is held.
   ``counts["hand_base_limited"]`` per limited frame, one warning per episode and then at most
-  one every :data:`REPORT_EVERY_S` — except on the way from the park pose (before the first
-  tracked frame, after a restore) to the operator's hand: that glide is no jump.
+  one every :data:`REPORT_EVERY_S` — except while the hand enters (from the park pose before
+  the first tracked frame and after a restore, or after a tracking gap): that glide is no jump,
+  and it passes through the object with hand–object contacts off (:mod:`teleop.bridge.entry`).
 - **Instability.** Each MuJoCo step checks qpos, qvel and qacc; a NaN, Inf or |x| > 1e10 raises
   a warning counter (mjWARN_BADQPOS/BADQVEL/BADQACC) and resets the data. After each batch of
   steps the bridge compares the clock with the steps taken and reads those counters (a few
@@ -29,7 +30,9 @@ recording) — and each needs the same three answers: keep the loop going, say w
   (``reason``, ``object``, the placement) on ``/events`` (and in the recording where its
   format lists the type, :data:`teleop.record.schemas.EVENT_TYPES`),
   ``counts["scene_restored"]``, a warning as above. The next frames glide the hand back at
-  ``hand_max_step_m``.
+  ``hand_max_step_m`` (an entry).
+- **The object off the table** (free mode): it lands on the floor and is placed again after a
+  while (:mod:`teleop.bridge.object_watch`).
 
 An episode, for the warnings: one recording, or the time outside recordings.
 :class:`BridgeFaults` is a mixin of :class:`teleop.bridge.bridge.Bridge` (the attributes
@@ -55,7 +58,10 @@ import zenoh
 from sim.hand.model import Hand
 from sim.world.scene import Scene
 from teleop.bridge.config import BridgeConfig
+from teleop.bridge.entry import BridgeEntry
 from teleop.bridge.object_mode import Placement
+from teleop.bridge.object_watch import ObjectWatch
+from teleop.bridge.surface_feed import SurfaceFeed
 from teleop.record.recorder import RecordingFailed, SessionRecorder
 from teleop.record.schemas import EVENT_TYPES
 
@@ -93,7 +99,7 @@ class EpisodeWarning:
         self._episode, self._t_mono, self._n = episode, now, 0
 
 
-class BridgeFaults:
+class BridgeFaults(BridgeEntry, ObjectWatch, SurfaceFeed):
     """Fault handling of the bridge (module docstring)."""
 
     config: BridgeConfig
@@ -110,7 +116,8 @@ class BridgeFaults:
     _place_object: Callable[[], Placement]
 
     def _init_faults(self) -> None:
-        self._parked = True   # the hand is at its park pose or gliding from it to the operator
+        self._init_entry()
+        self._init_object_watch()
         self._base_warning = EpisodeWarning()
         self._restore_warning = EpisodeWarning()
 
@@ -153,21 +160,25 @@ class BridgeFaults:
     # ------------------------------------------------------------------------------ hand base
 
     def _park_hand(self) -> None:
-        """The hand's base at rest at its park pose, above and behind the object's spot."""
+        """The hand's base at rest at its park pose, above and behind the object's spot; it
+        enters from there (:mod:`teleop.bridge.entry`)."""
         park = np.array([*self.config.object_pos_m, 0.0]) + PARK_OFFSET_M
         self.scene.set_hand_pose(park, np.array([1.0, 0.0, 0.0, 0.0]), teleport=True)
-        self._parked = True
+        self._at_target = False
+        self._begin_entry("from the park pose")
 
     def _limit_base(self, base_m: Array) -> Array:
         """``base_m`` (world, metres), or the point ``hand_max_step_m`` from the current mocap
-        target toward it (the current target when ``base_m`` is not finite)."""
+        target toward it (the current target when ``base_m`` is not finite). A tracked frame
+        after a gap may begin an entry (:mod:`teleop.bridge.entry`)."""
         now = self.scene.data.mocap_pos[self.scene.mocap_id]
         step_m, limit_m = math.dist(base_m, now), self.config.hand_max_step_m
-        if step_m <= limit_m:
-            self._parked = False
+        self._at_target = step_m <= limit_m
+        self._watch_gap(far=not self._at_target)
+        if self._at_target:
             return base_m
         limited = now + (base_m - now) * (limit_m / step_m) if math.isfinite(step_m) else now.copy()
-        if self._parked:
+        if self._entering:
             return limited
         with self._lock:
             self.counts["hand_base_limited"] += 1
@@ -179,13 +190,15 @@ class BridgeFaults:
 
     def _check_physics(self, t0_s: float, steps: int) -> None:
         """After ``steps`` physics steps from simulated time ``t0_s``: restore the scene when
-        MuJoCo found a bad state (module docstring)."""
+        MuJoCo found a bad state (module docstring), else watch the object and the entry."""
         d = self.scene.data
         dt = self.scene.model.opt.timestep
         t_s = t0_s + steps * dt
         w = d.warning
         if abs(d.time - t_s) < 0.5 * dt and not (w[_QPOS].number or w[_QVEL].number
                                                  or w[_QACC].number):
+            self._watch_object()
+            self._end_entry_when_clear()
             return
         self._restore_scene(self._instability(t0_s, steps), t_s)
 
