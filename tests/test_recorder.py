@@ -7,13 +7,7 @@ from __future__ import annotations
 import base64
 import json
 import logging
-import os
 import re
-import signal
-import subprocess
-import sys
-import textwrap
-import time
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +20,7 @@ from teleop.record.contact_record import ContactRecord
 from teleop.record.foxglove import FrameTransform
 from teleop.record.recorder import SessionRecorder
 from teleop.record.session import SessionError, open_session, repair_session
+from tests.killed_recorder import record_then_kill
 
 REPO = Path(__file__).resolve().parents[1]
 JOINTS = [f"rh_J{i}" for i in range(24)]
@@ -243,47 +238,12 @@ def test_chunks_are_time_bounded(tmp_path: Path) -> None:
         assert rec.stats.written["/hands"] - rec.stats.flushed["/hands"] <= 10
 
 
-_CHILD = textwrap.dedent("""
-    import sys, time
-    import numpy as np
-    from teleop.messages import HandFrame, HandState, NUM_JOINTS
-    from teleop.record.recorder import SessionRecorder
-
-    rec = SessionRecorder(sys.argv[1], metadata={"hand": "shadow_right",
-                                                 "joint_names": [f"j{i}" for i in range(24)]})
-    q = np.tile([1.0, 0.0, 0.0, 0.0], (NUM_JOINTS, 1))
-    hand = HandState(np.zeros((NUM_JOINTS, 3)), q, np.full(NUM_JOINTS, 0.01),
-                     np.ones(NUM_JOINTS, bool))
-    i, t_next = 0, time.monotonic()
-    while True:
-        frame = HandFrame(i, i / 200, i / 200, [0.0, 0.0, 1.6], [1.0, 0.0, 0.0, 0.0],
-                          right=hand, source="child")
-        rec.write_hands(frame)
-        rec.write_state(np.full(24, 0.01 * i), [0, 0, 1], [1, 0, 0, 0], [0.5, 0, 0.8],
-                        [1, 0, 0, 0], seq=i)
-        i += 1
-        print(i, rec.stats.flushed["/hands"], flush=True)  # frames written, frames flushed
-        t_next += 0.005  # 200 Hz
-        time.sleep(max(0.0, t_next - time.monotonic()))
-""")
 
 
 def test_killed_recorder_leaves_a_readable_file(tmp_path: Path,
                                                 caplog: pytest.LogCaptureFixture) -> None:
     path = tmp_path / "killed.mcap"
-    env = {**os.environ, "PYTHONPATH": str(REPO)}
-    child = subprocess.Popen([sys.executable, "-c", _CHILD, str(path)], cwd=REPO, env=env,
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        first = child.stdout.readline()  # recording has started
-        assert first, child.stderr.read()
-        time.sleep(1.5)
-    finally:
-        child.send_signal(signal.SIGKILL)
-        out, _ = child.communicate(timeout=10)
-    assert child.returncode == -signal.SIGKILL
-    lines = [ln.split() for ln in (first + out).splitlines() if len(ln.split()) == 2]
-    written, flushed = map(int, lines[-1])
+    written, flushed = record_then_kill(path, 1.5)
     assert written > 150  # about 300 at 200 Hz
 
     with caplog.at_level(logging.WARNING, logger="teleop.record.session"):

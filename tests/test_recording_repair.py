@@ -9,11 +9,6 @@ from __future__ import annotations
 
 import logging
 import os
-import signal
-import subprocess
-import sys
-import textwrap
-import time
 from collections import Counter
 from pathlib import Path
 
@@ -26,6 +21,7 @@ from teleop.record.mcap_scan import Block, scan_file
 from teleop.record.repair import REPAIR_METADATA_NAME, RepairError, default_output, repair
 from teleop.record.replay import replay
 from teleop.record.session import SessionError, block_messages, open_session
+from tests.killed_recorder import record_then_kill
 
 REPO = Path(__file__).resolve().parents[1]
 RECORDING = REPO / "recordings" / "demo_004_sugar_box.mcap"
@@ -91,46 +87,11 @@ def test_truncated_recording_is_repaired_at_every_kind_of_cut(tmp_path: Path) ->
     assert not list(tmp_path.glob(".*.tmp"))   # atomic output: no temp file left behind
 
 
-_CHILD = textwrap.dedent("""
-    import sys, time
-    import numpy as np
-    from teleop.messages import HandFrame, HandState, NUM_JOINTS
-    from teleop.record.recorder import SessionRecorder
-
-    rec = SessionRecorder(sys.argv[1], metadata={"hand": "shadow_right",
-                                                 "joint_names": [f"j{i}" for i in range(24)]},
-                          flush_interval_s=0.1)
-    q = np.tile([1.0, 0.0, 0.0, 0.0], (NUM_JOINTS, 1))
-    hand = HandState(np.zeros((NUM_JOINTS, 3)), q, np.full(NUM_JOINTS, 0.01),
-                     np.ones(NUM_JOINTS, bool))
-    i, t_next = 0, time.monotonic()
-    while True:
-        rec.write_hands(HandFrame(i, i / 200, i / 200, [0.0, 0.0, 1.6], [1.0, 0.0, 0.0, 0.0],
-                                  right=hand, source="child"))
-        rec.write_state(np.full(24, 0.01 * i), [0, 0, 1], [1, 0, 0, 0], [0.5, 0, 0.8],
-                        [1, 0, 0, 0], seq=i)
-        i += 1
-        print(i, rec.stats.flushed["/hands"], flush=True)
-        t_next += 0.005
-        time.sleep(max(0.0, t_next - time.monotonic()))
-""")
 
 
 def test_recorder_killed_with_sigkill_is_repaired(tmp_path: Path) -> None:
     path = tmp_path / "killed.mcap"
-    child = subprocess.Popen([sys.executable, "-c", _CHILD, str(path)], cwd=REPO,
-                             env={**os.environ, "PYTHONPATH": str(REPO)},
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        first = child.stdout.readline()
-        assert first, child.stderr.read()
-        time.sleep(1.2)
-    finally:
-        child.send_signal(signal.SIGKILL)
-        out, _ = child.communicate(timeout=10)
-    assert child.returncode == -signal.SIGKILL
-    written, flushed = map(int, [ln for ln in (first + out).splitlines()
-                                 if len(ln.split()) == 2][-1].split())
+    written, flushed = record_then_kill(path, 1.2, flush_interval_s=0.1)
     assert _plain_fails(path)
     killed = open_session(path)
     assert killed.truncated

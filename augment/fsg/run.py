@@ -16,9 +16,9 @@ sorted by ε, so every force-closure grasp comes before them, and the simulated 
 decides. Why: on the authors' bowl demonstration (three fingertips on the rim) 99 % of the
 geometrically valid candidates have no force closure under the rigid point-contact GWS, so the
 strict filter returned 8 grasps of 200 in 60 s; relaxed, 198 come in 13 s and 12 % of them hold
-in lift-drop. The authors' implementation never had a strict filter: it took the facet nearest
-the origin *by absolute offset* as ε, which is positive for many grasps whose origin lies
-outside the hull.
+in lift-drop. The authors' implementation (``src/gws.cc``, read, not run) has no strict filter
+either: it takes ``-offset`` of the facet with the smallest absolute offset as ε, which can be
+positive when the origin lies outside the hull.
 """
 
 from __future__ import annotations

@@ -52,16 +52,15 @@ def positive(text: str) -> float:
 
 
 def rate(text: str) -> float | str:
-    """A playback speed factor: a finite number > 0, or ``max`` (as fast as possible)."""
+    """A playback speed factor: a finite number > 0 (:func:`positive`), or ``max`` (as fast
+    as possible)."""
     if text == "max":
         return text
     try:
-        r = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a speed factor > 0 or 'max', got {text!r}") from None
-    if not (math.isfinite(r) and r > 0):
-        raise argparse.ArgumentTypeError(f"expected a finite speed factor > 0 or 'max', got {text}")
-    return r
+        return positive(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"expected a finite speed factor > 0 or 'max', "
+                                         f"got {text!r}") from None
 
 
 def _tcp_port(text: str, low: int) -> int:

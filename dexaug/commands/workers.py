@@ -26,9 +26,9 @@ def stop_workers() -> None:
     their running tasks, and shut their pools down; for the end of an interrupted command."""
     from sim.pools import stop_pools
 
-    children = multiprocessing.active_children()
-    for child in children:   # also the fork server and any worker outside sim.pools
-        child.terminate()
     stopped = stop_pools()
-    if children or stopped:
-        log.debug("terminated %d worker processes", max(len(children), stopped))
+    others = multiprocessing.active_children()   # the fork server, any worker outside sim.pools
+    for child in others:
+        child.terminate()
+    if stopped or others:
+        log.debug("terminated %d pool workers and %d other processes", stopped, len(others))
