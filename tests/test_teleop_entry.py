@@ -136,3 +136,48 @@ def test_a_tracking_gap_then_reentry_is_safe(live, episode) -> None:
     assert len(during) >= 3 and max(n for n, _ in during) == 0, again
     assert max(d for _, d in during) < 1e-3, again
     assert bridge.counts["hand_entries"] == 2 and not bridge._entering
+
+
+def _far_side_frame(bridge, episode, seq0: int) -> HandFrame:
+    """The pre-grasp frame moved so the operator's wrist is 17 cm past the box's centre, away
+    from the park pose, at the box's height: the straight glide from the park pose sweeps the
+    hand over and into the box."""
+    from teleop.bridge.faults import PARK_OFFSET_M
+
+    first = _frames_from(episode, "close", 1, seq0)[0]
+    box, _ = bridge.scene.object_pose()
+    park = np.array([*bridge.config.object_pos_m, 0.0]) + PARK_OFFSET_M
+    ahead = (box - park) * np.array([1.0, 1.0, 0.0])
+    ahead /= np.linalg.norm(ahead)
+    wrist = first.right.positions[0]                     # OpenXR WRIST, tracking space
+    shift = box + 0.17 * ahead - bridge.config.world_offset_m - wrist
+    right = dataclasses.replace(first.right, positions=first.right.positions + shift)
+    return dataclasses.replace(first, right=right)
+
+
+@pytest.mark.parametrize("entry", [True, False], ids=["safe entry", "old straight glide"])
+def test_entry_through_the_object_line(episode, tmp_path: Path, monkeypatch, entry: bool) -> None:
+    """The first tracked frame 50 cm from the park pose *behind* the box: the glide's straight
+    line runs through it. With safe entry nothing touches; with hand–object contacts left on
+    (the old glide) the hand hits the box — the check can fail."""
+    from teleop.bridge.bridge import Bridge
+
+    if not entry:
+        monkeypatch.setattr(Bridge, "_begin_entry", lambda self, reason: None)
+    live = _Live(list(episode.frames), tmp_path, object_mode="free")
+    try:
+        bridge = live.bridge
+        from teleop.bridge.faults import PARK_OFFSET_M
+
+        park = np.array([*bridge.config.object_pos_m, 0.0]) + PARK_OFFSET_M
+        glide = _drive(live, _hold(_far_side_frame(bridge, episode, 0), 60, 0))
+        base = bridge.scene.data.mocap_pos[bridge.scene.mocap_id]
+        assert np.linalg.norm(base - park) > 0.45
+        touched = max(n for n, _, _ in glide[:12])           # the glide: 0.1 m a frame
+        moved = max(d for _, d, _ in glide)
+    finally:
+        live.close()
+    if entry:
+        assert touched == 0 and moved < 1e-3, glide[:12]
+    else:
+        assert touched > 0 or moved > 0.01, glide[:12]

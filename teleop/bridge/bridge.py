@@ -1,19 +1,19 @@
 """The teleop bridge: one loop from tracked hands on zenoh to a simulated robot hand and back.
 
-Why one loop: retargeting, the MuJoCo world, contacts, the state stream and the recorder must
-agree on one state at one time; one thread owns the :class:`sim.world.scene.Scene` and everything that
-touches it (control commands are queued to it), so nothing needs a lock around MuJoCo data.
+Why one loop: retargeting, the MuJoCo world, contacts, the state stream and the recorder must agree
+on one state at one time; one thread owns the :class:`sim.world.scene.Scene` and all that touches it
+(control commands are queued to it), so nothing needs a lock around MuJoCo data.
 
 Input (``dexaug/<rig>/hands``, :mod:`teleop.keys`): wire bytes of :mod:`teleop.messages`. The
 zenoh callback decodes each sample (malformed bytes and other schema versions are counted and
 logged, never raised), hands the raw bytes to the recorder when recording, and keeps only the
 **latest** frame: a late or dropped frame never stalls the loop, the next one supersedes it.
-Replay (:mod:`teleop.record.replay`) and live ingest publish the same bytes, so the bridge cannot tell
-them apart.
+Replay (:mod:`teleop.record.replay`) and live ingest publish the same bytes: the bridge cannot tell.
 
 Physics runs at the model timestep, decoupled from the input rate: the loop advances
 ``mj_step`` to wall-clock time (at most ``max_catchup_steps`` per tick; beyond that the lag is
-dropped and counted rather than letting the loop spiral). In ``deterministic`` mode (tests,
+dropped and counted rather than letting the loop spiral). The hand's servos are the model's at
+``servo_kp_scale`` × its kp (what lift-drop validates with). In ``deterministic`` mode (tests,
 offline reprocessing) every received frame is queued and processed in order with exactly
 ``steps_per_frame`` physics steps, so the same input gives the same trajectory bit for bit.
 
@@ -22,19 +22,18 @@ Recording (``start_recording``): raw ``/hands`` as received, and per published s
 ``seq`` of the frame answered and one log time — and the ``/events`` with the simulated time
 they happen at, so demo extraction can pair and time them on the simulation's own clock.
 
-Faults (:mod:`teleop.bridge.faults`): a recorder write error stops the recording, the loop goes
-on; the hand base moves at most ``hand_max_step_m`` per frame, entering without hand–object
+Faults (:mod:`teleop.bridge.faults`): a recorder write error stops the recording, the loop goes on;
+the hand base moves at most ``hand_max_step_m`` per frame, entering without hand–object
 contacts (:mod:`teleop.bridge.entry`); an unstable simulation (MuJoCo reset its data) is restored,
 the simulated clock never going backwards; an object off the table is put back — with events.
 
 Output: ``/state`` JSON (``seq`` of the frame answered — latency measurements match on it —,
-sim time, simulated and retargeted qpos, palm and object poses, hand–object contacts) at most
-``state_rate_hz`` and on every new frame; ``/view`` JPEG from a head-following camera
-(:mod:`teleop.bridge.view`) at ``view_rate_hz`` when GL works, rendered in its own thread from
-a copy of the data (:mod:`teleop.bridge.view_stream`); ``/events`` JSON. Control: queryable
-``dexaug/<rig>/control/**`` (``start_recording``, ``stop_recording``, ``choose_object``,
-``reset_object``, ``set_object_mode``, ``mark_grasp``, ``status``), JSON in, JSON out (``{"ok":
-false, "error": ...}`` on failure): :mod:`teleop.bridge.control`.
+sim time, simulated and retargeted qpos, palm and object poses, hand–object contacts, grasp cue
+and assist, :mod:`teleop.bridge.grasp_assist`) at most ``state_rate_hz`` and on each new frame;
+``/view`` JPEG from a head-following camera (:mod:`teleop.bridge.view`) at ``view_rate_hz`` when
+GL works, rendered in its own thread from a copy of the data (:mod:`teleop.bridge.view_stream`);
+``/events`` JSON. Control: queryable ``dexaug/<rig>/control/**``, JSON in, JSON out (``{"ok":
+false, "error": ...}`` on failure; the commands: :mod:`teleop.bridge.control`).
 
 World layout: the scene's table top is z = 0; the operator's tracking space (local-floor, z up)
 is shifted by ``world_offset_m`` (default 0.8 m down: a table top at a standing operator's
@@ -150,9 +149,10 @@ class Bridge(BridgeFaults, BridgeControl):
 
     def _build_scene(self, object_name: str) -> None:
         obj = load_object(object_name)
-        floor_z_m = float(self.config.world_offset_m[2]) if self.config.floor else None  # operator's
-        self.scene = Scene(self.hand, obj, table=self.config.table, object_hold=True, floor_z_m=floor_z_m,
-                           physics=PhysicsOptions(timestep_s=self.config.timestep_s))
+        cfg = self.config
+        self.scene = Scene(self.hand, obj, table=cfg.table, object_hold=True, servos=cfg.servos,
+                           floor_z_m=float(cfg.world_offset_m[2]) if cfg.floor else None,  # operator's
+                           physics=PhysicsOptions(timestep_s=cfg.timestep_s))
         self.object_name = object_name
         self._tip_fingers = tip_finger_bodies(self.scene)
         self._object_home = self._home_pose(obj)
@@ -278,13 +278,13 @@ class Bridge(BridgeFaults, BridgeControl):
                "q_target": finite_list(self._q_target) if self._q_target is not None else None,
                "palm_pos_m": finite_list(palm_p), "palm_quat_wxyz": finite_list(palm_q),
                "object": self.object_name, "object_pos_m": finite_list(obj_p),
-               "object_quat_wxyz": finite_list(obj_q), "held": held,
+               "object_quat_wxyz": finite_list(obj_q), "held": held, **self.grasp_state,
                "contacts": [c.to_json() for c in contacts if c.finger is not None]}
         self._pub_state.put(json.dumps(msg).encode())
         with self._lock:
             self.counts["states"] += 1
         if self._recorder is not None:  # one step, one clock: the same t_s, seq and log time
-            extra = {"q_target": msg["q_target"], "held": held}
+            extra = {"q_target": msg["q_target"], "held": held, **self.grasp_state}
             t_ns = time.time_ns()
             self._record("write_state", qpos, palm_p, palm_q, obj_p, obj_q, t_s=self.sim_time_s,
                          seq=self._last_seq, tracked=not held, object_name=self.object_name,

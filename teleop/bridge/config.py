@@ -16,6 +16,8 @@ import numpy as np
 
 from sim.config import Section, load_toml
 from sim.errors import ConfigError
+from sim.world.hand_spec import ServoSettings
+from teleop.bridge.grasp_assist import AssistSettings
 from teleop.retarget.config import TELEOP_CONFIG
 
 __all__ = ["OBJECT_MODES", "BridgeConfig", "check_object_mode", "load_bridge_config"]
@@ -33,7 +35,8 @@ _BRIDGE_KEYS = {"state_rate_hz", "view_enabled", "view_rate_hz", "view_max_duty"
                 "settle_timeout_s", "timestep_s", "max_catchup_steps", "steps_per_frame", "recordings_dir",
                 "deterministic", "hand_max_step_m", "floor", "entry_gap_s", "entry_arrive_m",
                 "entry_arrive_deg", "object_reset_below_m", "object_reset_beyond_m",
-                "object_reset_after_s"}
+                "object_reset_after_s", "assist_press_m", "assist_engage_s", "assist_ramp_s",
+                "assist_release_s", "servo_kp_scale"}
 
 
 @dataclass
@@ -79,6 +82,11 @@ class BridgeConfig:
     object_reset_below_m: float = 0.05
     object_reset_beyond_m: float = 0.1
     object_reset_after_s: float = 1.0
+    #: grasp assist (teleop.bridge.grasp_assist): press (metres into the object; 0: off) and
+    #: its timing (simulated seconds)
+    assist: AssistSettings = field(default_factory=AssistSettings)
+    #: the hand's position servos (each servo's own kp × servo_kp_scale; force limits the model's)
+    servos: ServoSettings = field(default_factory=lambda: ServoSettings(kp_scale=5.0))
 
 
 def load_bridge_config(path: Path | str | None = None) -> BridgeConfig:
@@ -130,6 +138,13 @@ def load_bridge_config(path: Path | str | None = None) -> BridgeConfig:
         object_reset_beyond_m=sec.float("object_reset_beyond_m", d.object_reset_beyond_m,
                                         min=0.0),
         object_reset_after_s=sec.float("object_reset_after_s", d.object_reset_after_s, min=0.0),
+        servos=ServoSettings(kp_scale=sec.float("servo_kp_scale", d.servos.kp_scale, min=0.1,
+                                                max=100.0)),
+        assist=AssistSettings(
+            press_m=sec.float("assist_press_m", d.assist.press_m, min=0.0, max=0.05),
+            engage_s=sec.float("assist_engage_s", d.assist.engage_s, min=0.0, max=5.0),
+            ramp_s=sec.float("assist_ramp_s", d.assist.ramp_s, min=0.0, max=5.0),
+            release_s=sec.float("assist_release_s", d.assist.release_s, min=0.0, max=5.0)),
     )
 
 

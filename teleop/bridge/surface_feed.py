@@ -1,4 +1,5 @@
-"""The object's surface for contact-aware retargeting, kept where the bridge's object is.
+"""What the retargeter takes from the scene each frame: the object's surface, kept where the
+bridge's object is, and the grasp assist's press (:mod:`teleop.bridge.grasp_assist`).
 
 Why a mixin of its own: the retargeter snaps finger-pad targets onto the object
 (:mod:`teleop.retarget.snap`), so it needs the object's surface in its own world (the bridge's
@@ -8,6 +9,10 @@ surface when a scene is built (6–23 ms, once per object), and :meth:`SurfaceFe
 moves it to the object's current pose before each frame is retargeted. The surface is part of
 the scene state a failed ``choose_object`` restores, and the retargeter is always pointed at the
 bridge's current surface.
+
+The fingers touching the object in the last published state drive the grasp assist (the press
+put on the snapped pad targets) and the page's cue (:attr:`SurfaceFeed.grasp_state`: stable,
+how long held, assist level), both started afresh with each new scene.
 """
 
 from __future__ import annotations
@@ -16,6 +21,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from teleop.bridge.grasp_assist import GraspAssist, GraspCue
 from teleop.retarget.surface import ObjectSurface
 
 if TYPE_CHECKING:
@@ -23,6 +29,7 @@ if TYPE_CHECKING:
     from sim.world.scene import Scene
     from teleop.bridge.config import BridgeConfig
     from teleop.messages import HandFrame
+    from teleop.record.contact_record import ContactRecord
     from teleop.retarget.result import RetargetResult
     from teleop.retarget.retargeter import Retargeter
 
@@ -35,11 +42,23 @@ class SurfaceFeed:
     scene: Scene
     config: BridgeConfig
     retargeter: Retargeter
+    sim_time_s: float
+    _last_contacts: list[ContactRecord]
     _surface: ObjectSurface
+    _assist: GraspAssist
+    _cue: GraspCue
+    #: For /state and the recording: {"grasp_stable": bool, "grasp_held_s": s, "assist": 0…1}.
+    grasp_state: dict[str, float | bool]
 
     def _attach_surface(self, obj: ObjectAsset) -> None:
-        """The surface of the scene's new object (the retargeter takes it at the next frame)."""
+        """The surface of the scene's new object (the retargeter takes it at the next frame),
+        and the assist and cue started afresh."""
         self._surface = ObjectSurface.from_object(obj)
+        lead = self.scene.hand.finger_names[0]
+        self._assist = GraspAssist(self.config.assist)
+        self._cue = GraspCue(lead)
+        self.retargeter.press_m = 0.0
+        self.grasp_state = {"grasp_stable": False, "grasp_held_s": 0.0, "assist": 0.0}
 
     def _retarget(self, frame: HandFrame) -> RetargetResult:
         """``frame`` retargeted with the object's surface at its current simulated pose."""
@@ -48,4 +67,10 @@ class SurfaceFeed:
                                np.asarray(quat, float))
         if self.retargeter.surface is not self._surface:
             self.retargeter.set_object(self._surface)
+        t_s = self.sim_time_s
+        touching = {c.finger for c in self._last_contacts if c.finger}
+        stable, held_s = self._cue.update(t_s, touching)
+        self.retargeter.press_m = self._assist.update(t_s, held_s)
+        self.grasp_state = {"grasp_stable": stable, "grasp_held_s": round(held_s, 3),
+                            "assist": round(self._assist.level, 3)}
         return self.retargeter.step_frame(frame)

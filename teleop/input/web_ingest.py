@@ -303,7 +303,9 @@ class WebIngest:
                        "object": st.get("object"),
                        "contact_fingers": sorted({c.get("finger") for c in contacts
                                                   if c.get("finger")}),
-                       "n_contacts": len(contacts)}
+                       "n_contacts": len(contacts),
+                       "grasp_stable": bool(st.get("grasp_stable")),
+                       "grasp_held_s": st.get("grasp_held_s"), "assist": st.get("assist")}
         except (ValueError, AttributeError, TypeError) as exc:
             logger.warning("%s: unreadable state message: %s", self.keys.state, exc)
             return

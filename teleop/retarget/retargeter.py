@@ -32,8 +32,8 @@ Targets (contact-aware)
     together (:func:`teleop.retarget.operator_points.pinch_adjust`) and a thumb–finger distance
     task (:class:`teleop.retarget.tasks.PinchTask`, cost ``pinch_cost`` × w) joins the IK.
     With an object given (:meth:`Retargeter.set_object`), pad targets within
-    ``snap_distance_m`` of its surface, or behind it, are moved onto it
-    (:mod:`teleop.retarget.snap`, :mod:`teleop.retarget.surface`).
+    ``snap_distance_m`` of its surface, or behind it, are moved onto it, or ``press_m`` into it
+    (the bridge's grasp assist; :mod:`teleop.retarget.snap`, :mod:`teleop.retarget.surface`).
 
 Scale calibration (:mod:`teleop.retarget.calibration`)
     scale = robot length / operator length × ``scale``. :meth:`Retargeter.calibrate_scale`
@@ -42,10 +42,9 @@ Scale calibration (:mod:`teleop.retarget.calibration`)
     control) measures the next ones again.
 
 Solver settings
-    One IK iteration per frame suffices with warm starting (``benchmarks/bench_retarget.py``);
-    ``damping`` (1e-3, Levenberg–Marquardt on Δq) makes one full Gauss–Newton step per frame
-    stable (with 1e-6 the thumb limit-cycles around a pinch); the output is low-pass filtered
-    (:class:`teleop.retarget.joint_filter.JointFilter`).
+    One warm-started IK iteration per frame suffices (``benchmarks/bench_retarget.py``); ``damping``
+    1e-3 (Levenberg–Marquardt on Δq) keeps that full step stable (1e-6: the thumb limit-cycles
+    around a pinch); the output is low-pass filtered (:mod:`teleop.retarget.joint_filter`).
 
 Coupled joints and the wrist
     Coupled joints are QP equality constraints (:class:`teleop.retarget.tasks.CouplingConstraint`).
@@ -53,10 +52,9 @@ Coupled joints and the wrist
     ``DofFreezingTask``): the floating base already provides the wrist pose.
 
 Missing data
-    A frame without the hand, an untracked hand, invalid or non-finite wrist/fingertip joints
-    or a failed QP solve hold the last output (``held=True``) and count the reason
-    (:attr:`Retargeter.held_counts`); an invalid phalanx joint only drops its task. Nothing
-    raises in the tracking loop.
+    A frame without the hand, an untracked hand, invalid or non-finite wrist/fingertip joints or a
+    failed QP solve hold the last output (``held=True``) and count the reason
+    (:attr:`Retargeter.held_counts`); an invalid phalanx joint only drops its task. Nothing raises.
 
 Quaternions are wxyz everywhere here; positions metres; joint values radians.
 """
@@ -196,6 +194,8 @@ class Retargeter:
         if cfg.calibration_s > 0.0:
             self.recalibrate()
         self.surface: ObjectSurface | None = None
+        #: Metres (per finger, or one) snapped targets go into the object (the grasp assist's).
+        self.press_m: Array | float = 0.0
         self.reset()
 
     # ------------------------------------------------------------------------------ state
@@ -342,7 +342,7 @@ class Retargeter:
         r_b = quat_to_mat1(base_q)
         world = base_p + targets @ r_b.T
         _, normals, signed = self.surface.query(world)
-        world, moved = snap_to_surface(world, normals, signed, cfg.snap_distance_m)
+        world, moved = snap_to_surface(world, normals, signed, cfg.snap_distance_m, self.press_m)
         return (world - base_p) @ r_b, moved
 
     def _phalanx_targets(self, hand: HandState, p_w: Array, r_w: Array) -> Array | None:

@@ -18,6 +18,12 @@ short of the object they hold (hand-model and tracking error): those must land o
 mm off. Targets behind the surface (d < 0) are put onto it: the operator pressing into an
 object means "touch it", and the simulated contact stops the finger there anyway.
 
+With a press p (the bridge's grasp assist, :mod:`teleop.bridge.grasp_assist`) the snapped
+targets go p *behind* the surface instead, f_p(d) = f(d) − p·w(d) with w = 1 over the inner
+half and the same Hermite blend down to 0 at snap_m (w(d) = 1 − (3u² − 2u³)): still C¹ and
+monotonic (w only falls), and targets beyond snap_m keep d, so fingers away from the object
+never move for it.
+
 Points and distances in metres, in whatever frame the surface was queried in.
 """
 
@@ -30,18 +36,20 @@ __all__ = ["snap_distances", "snap_to_surface"]
 Array = np.ndarray
 
 
-def snap_distances(signed_m: Array, snap_m: float) -> Array:
-    """Signed distance after snapping (the module docstring's f), per point (metres)."""
+def snap_distances(signed_m: Array, snap_m: float, press_m: Array | float = 0.0) -> Array:
+    """Signed distance after snapping (the module docstring's f, or f_p with a press
+    ``press_m``, per point or one for all), per point (metres)."""
     d = np.asarray(signed_m, dtype=float)
     a = 0.5 * snap_m
     u = np.clip((d - a) / a, 0.0, 1.0)
-    blend = snap_m * u * u * (3.0 - 2.0 * u) + a * u * u * (u - 1.0)
+    rise = u * u * (3.0 - 2.0 * u)
+    blend = snap_m * rise + a * u * u * (u - 1.0) - np.asarray(press_m, float) * (1.0 - rise)
     return np.where(d >= snap_m, d, blend)
 
 
-def snap_to_surface(points_m: Array, normals: Array, signed_m: Array,
-                    snap_m: float) -> tuple[Array, Array]:
+def snap_to_surface(points_m: Array, normals: Array, signed_m: Array, snap_m: float,
+                    press_m: Array | float = 0.0) -> tuple[Array, Array]:
     """Points (n, 3) moved along their surface ``normals`` (n, 3) from signed distance
     ``signed_m`` (n,) to :func:`snap_distances`; also how far each moved (n,), metres."""
-    moved = np.asarray(signed_m, dtype=float) - snap_distances(signed_m, snap_m)
+    moved = np.asarray(signed_m, dtype=float) - snap_distances(signed_m, snap_m, press_m)
     return points_m - moved[:, None] * normals, moved

@@ -30,7 +30,8 @@ class SynthConfig:
     press_depth_m: in a generic grasp (no reference), how far past the surface the operator
     closes the fingertips (mapped onto the robot): without touch feedback a person closes
     until the object stops the fingers, and a robot fingertip aimed at the surface stops
-    short of it by the retargeting error.
+    short of it by the retargeting error. table_clearance_m: how far above the table the
+    operator keeps the fingers while reaching (they see it; :mod:`teleop.synthetic.preshape`).
     Episode: approach_distance_m (start of the wrist, back along the palm normal and up),
     lift_height_m, and the phase durations in seconds. Scene: object_pos_m / object_rpy_deg
     (object frame in the world when the caller gives none), head_pos_m, head_pitch_deg
@@ -48,6 +49,8 @@ class SynthConfig:
     hand_length_m: float = 0.185
     tip_surface_snap_m: float = 0.02
     press_depth_m: float = 0.01
+    table_clearance_m: float = 0.01
+    object_clearance_m: float = 0.015
     approach_distance_m: float = 0.25
     lift_height_m: float = 0.10
     still_s: float = 0.4
@@ -68,7 +71,8 @@ _SYNTH_FLOATS = {"rate_hz": (1.0, 1000.0), "time_jitter_s": (0.0, 0.1), "latency
                  "latency_jitter_s": (0.0, 1.0), "position_noise_m": (0.0, 0.1),
                  "orientation_noise_deg": (0.0, 45.0), "dropout_fraction": (0.0, 0.9),
                  "hand_length_m": (0.10, 0.30), "tip_surface_snap_m": (0.0, 0.1),
-                 "press_depth_m": (0.0, 0.05),
+                 "press_depth_m": (0.0, 0.05), "table_clearance_m": (0.0, 0.1),
+                 "object_clearance_m": (0.0, 0.1),
                  "approach_distance_m": (0.0, 2.0),
                  "lift_height_m": (0.0, 1.0), "still_s": (0.0, 60.0),
                  "approach_s": (0.05, 60.0), "close_s": (0.05, 60.0), "settle_s": (0.0, 60.0),

@@ -7,10 +7,12 @@ captures have neither a known object pose nor a grasp moment. The synthetic oper
 operator: a parametric human hand (:mod:`teleop.synthetic.human_hand`) takes a grasp pose that
 the retargeter maps onto the robot hand's reference grasp of the object
 (:mod:`teleop.synthetic.grasp_pose`), performs approach → close → lift → hold → release →
-retreat (:mod:`teleop.synthetic.episode`), and the result goes through the same "sensor" a
-headset is (noise, dropouts, timestamp jitter: :mod:`teleop.synthetic.sensor`) to become
-:class:`teleop.messages.HandFrame` objects in the MuJoCo world, exactly what ingest produces
-from a real Quest. :mod:`teleop.synthetic.writer` records an episode as a session.
+retreat (:mod:`teleop.synthetic.episode`), reaching from where, and in a pre-shape that, keep
+it off the table and the object until it closes (:mod:`teleop.synthetic.preshape`), and the
+result goes through the same "sensor" a headset is (noise, dropouts, timestamp jitter:
+:mod:`teleop.synthetic.sensor`) to become :class:`teleop.messages.HandFrame` objects in the
+MuJoCo world, exactly what ingest produces from a real Quest. :mod:`teleop.synthetic.writer`
+records an episode as a session.
 
 Settings live in ``configs/teleop.toml`` ``[synth]`` (:mod:`teleop.synthetic.config`). Units:
 metres, seconds, radians (degrees only in ``*_deg`` keys); quaternions wxyz in memory.
@@ -31,11 +33,22 @@ from teleop.synthetic.correspondence import Correspondence
 from teleop.synthetic.episode import GraspMotion, SynthEpisode
 from teleop.synthetic.grasp_pose import grasp_target
 from teleop.synthetic.human_hand import HumanHand, finger_of
+from teleop.synthetic.preshape import Obstacles
 from teleop.synthetic.sensor import DEVICE_T0_S, observe
 
 __all__ = ["synthesize"]
 
 logger = logging.getLogger(__name__)
+
+
+def _obstacles(object_name: str, obj_pos: np.ndarray, obj_rot: np.ndarray) -> Obstacles:
+    """The object's surface in the world and the table it stands on (its lowest point: the
+    bridge rests the object on its table, so this is where the operator sees the table top)."""
+    from sim.world.objects import load_object
+
+    mesh = load_object(object_name).surface_mesh()
+    pts = obj_pos + np.asarray(mesh.vertices) @ obj_rot.T
+    return Obstacles(float(pts[:, 2].min()), pts, np.asarray(mesh.vertex_normals) @ obj_rot.T)
 
 
 def synthesize(object_name: str, *, hand: Hand | str, seed: int = 0,
@@ -66,7 +79,8 @@ def synthesize(object_name: str, *, hand: Hand | str, seed: int = 0,
                           press_m=cfg.press_depth_m)
 
     motion = GraspMotion.plan(cfg, target.wrist_pos_m, target.wrist_rot, target.palm_rot,
-                              target.pose)
+                              target.pose, human=human,
+                              obstacles=_obstacles(object_name, obj_pos, obj_rot))
     rng = np.random.default_rng(seed)
     frames, tracked = observe(motion, human, cfg, rng, source=f"synth:{object_name}:seed{seed}")
     phases, t0 = motion.phases, DEVICE_T0_S

@@ -51,6 +51,14 @@ function say(text, level = '') {
   panel.dirty = true;
 }
 
+// The bridge's grasp cue (teleop.bridge.grasp_assist): stable enough to mark, and the assist.
+function gripCue(st) {
+  if (!st || !st.grasp_held_s) return 'grip: –';
+  const assist = st.assist ? ` · assist ${Math.round(100 * st.assist)} %` : '';
+  return st.grasp_stable ? `grip: stable, mark it${assist}`
+    : `grip: hold… ${st.grasp_held_s.toFixed(1)} s${assist}`;
+}
+
 function updateHud() {
   const st = stats.state, status = stats.status;
   $('link').textContent = `link: ${link.state}`;
@@ -61,6 +69,8 @@ function updateHud() {
   const fingers = st && st.contact_fingers && st.contact_fingers.length
     ? st.contact_fingers.join(', ') : 'none';
   $('contacts').textContent = `contacts: ${fingers}${st && st.held ? ' (hand held)' : ''}`;
+  $('grip').textContent = gripCue(st);
+  $('grip').className = st && st.grasp_stable ? 'stable' : '';
   $('counters').textContent = `sent ${stats.framesSent} · views ${stats.viewsReceived}`;
   const usable = link.state === 'connected';
   $('record').disabled = !usable;
@@ -313,6 +323,8 @@ function drawPanelCanvas() {
   const fingers = st && st.contact_fingers && st.contact_fingers.length ? st.contact_fingers.join(' ') : '–';
   c.font = '22px sans-serif';
   c.fillText(`contacts: ${fingers}`, 200, 512);
+  c.fillStyle = st && st.grasp_stable ? '#7dff9a' : '#ddd';
+  c.fillText(gripCue(st), 420, 512);
   c.fillStyle = message.level === 'error' ? '#ffb0b0' : message.level === 'warn' ? '#ffe0a0' : '#ddd';
   c.fillText(message.text.slice(0, 60), 12, 546);
 }
