@@ -124,6 +124,7 @@ def test_quest3_replay_reaches_the_bridge_and_the_view_comes_back(chromium, capt
                 "() => document.getElementById('view').naturalWidth || false",
                 timeout=10_000).json_value()
         stats = _js(page, "window.dexaug.stats")
+        grip = page.inner_text("#grip")
         log = _js(page, "window.dexaug.emulation.replay.log")
         bstatus = bridge.status()
         istats = ingest.stats()
@@ -198,6 +199,8 @@ def test_quest3_replay_reaches_the_bridge_and_the_view_comes_back(chromium, capt
     assert bstatus["counts"]["accepted"] == len(received)
     assert bstatus["counts"].get("malformed", 0) == 0
     assert stats["state"] is not None and stats["status"]["bridge"] is True
+    assert {"grasp_stable", "grasp_held_s", "assist"} <= set(stats["state"])   # the grasp cue
+    assert grip.startswith("grip:"), grip
     if not bstatus["view"]:
         pytest.skip("no OpenGL: hands checked, the /view half of the test could not run")
     assert stats["viewsReceived"] >= 10, stats["viewsReceived"]
