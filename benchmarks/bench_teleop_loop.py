@@ -1,8 +1,9 @@
 """Closed-loop teleop without a headset: the synthetic operator's grasps through the real bridge.
 
-For each object and seed (the object placed with a random yaw within ±40° and 3–5 cm off its
-spot) the synthetic operator (``teleop.synthetic``: human hand, headset noise and dropouts)
-grasps and lifts it at a given speed; the raw session is re-recorded through a real bridge
+For each object and seed (the object placed on the bridge's table at its spot ``object_pos_m``
+moved up to 3 cm along x and 5 cm along y, with a random yaw within ±40°) the synthetic
+operator (``teleop.synthetic``: human hand, headset noise and dropouts) grasps and lifts it at
+a given speed; the raw session is re-recorded through a real bridge
 twice — in demonstration mode (object held) and in free mode — and measured:
 
 - **demo**: the demo-mode recording yields a demonstration (``extract_demos``);
@@ -69,11 +70,13 @@ def _hold_height_m(path: Path, ep) -> float:
     from teleop.record.session import open_session
 
     states = [m for _, m in open_session(path).json_messages("/state")]
-    t = np.array([m["t_s"] for m in states]) - states[0]["t_s"]
+    # the operator's clock: each state names the frame (seq) it answers; simulated time runs
+    # at steps_per_frame × timestep per frame, not the frames' pace
+    device_s = {f.seq: f.device_time_s for f in ep.frames}
+    t = np.array([device_s.get(m["seq"], np.nan) for m in states])
     z = np.array([m["object_pos_m"][2] for m in states])
-    t0 = ep.phases["still"][0]
-    hold = (t >= ep.phases["hold"][0] - t0) & (t <= ep.phases["hold"][1] - t0)
-    return float(np.median(z[hold]) - np.median(z[t < 0.3]))
+    hold = (t >= ep.phases["hold"][0]) & (t <= ep.phases["hold"][1])
+    return float(np.median(z[hold]) - np.median(z[t < ep.phases["approach"][0]]))
 
 
 def run_one(job: tuple[str, str, int, str, str]) -> dict:
@@ -81,6 +84,7 @@ def run_one(job: tuple[str, str, int, str, str]) -> dict:
     os.environ.setdefault("MUJOCO_GL", "egl")
     from sim.demo import DemoError
     from sim.hand.model import Hand
+    from teleop.bridge.config import load_bridge_config
     from teleop.bridge.rerecord import rerecord
     from teleop.record.demos import extract_demos
     from teleop.synthetic.config import load_synth_config
@@ -90,7 +94,9 @@ def run_one(job: tuple[str, str, int, str, str]) -> dict:
     close_s, settle_s = SPEEDS[speed]
     rng = np.random.default_rng(seed)
     yaw = float(rng.uniform(-40, 40))
-    pos = (0.45 + rng.uniform(-0.03, 0.03), rng.uniform(-0.05, 0.05), 0.80)
+    bridge = load_bridge_config()   # the object's spot on the bridge's table, tracking space
+    spot = np.array([*bridge.object_pos_m, 0.0]) - bridge.world_offset_m
+    pos = tuple(spot + np.array([rng.uniform(-0.03, 0.03), rng.uniform(-0.05, 0.05), 0.0]))
     cfg = dataclasses.replace(load_synth_config(), close_s=close_s, settle_s=settle_s,
                               object_rpy_deg=(0.0, 0.0, yaw), object_pos_m=pos)
     hand = Hand.load(hand_name)

@@ -167,12 +167,14 @@ def _lifted_m(path: Path, ep) -> tuple[float, dict]:
 
     s = open_session(path)
     states = [m for _, m in s.json_messages("/state")]
-    t = np.array([m["t_s"] for m in states]) - states[0]["t_s"]
+    # the operator's clock: each state names the frame (seq) it answers; simulated time runs
+    # at steps_per_frame × timestep per frame, not the frames' pace
+    device_s = {f.seq: f.device_time_s for f in ep.frames}
+    t = np.array([device_s.get(m["seq"], np.nan) for m in states])
     z = np.array([m["object_pos_m"][2] for m in states])
-    t0 = ep.phases["still"][0]
-    hold = (t >= ep.phases["hold"][0] - t0) & (t <= ep.phases["hold"][1] - t0)
+    hold = (t >= ep.phases["hold"][0]) & (t <= ep.phases["hold"][1])
     extra = [m["extra"] for m in states]
-    return float(np.median(z[hold]) - np.median(z[t < 0.3])), {
+    return float(np.median(z[hold]) - np.median(z[t < ep.phases["approach"][0]])), {
         "assist": max(e.get("assist", 0.0) for e in extra),
         "stable": any(e.get("grasp_stable") for e in extra)}
 
