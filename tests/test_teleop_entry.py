@@ -181,3 +181,21 @@ def test_entry_through_the_object_line(episode, tmp_path: Path, monkeypatch, ent
         assert touched == 0 and moved < 1e-3, glide[:12]
     else:
         assert touched > 0 or moved > 0.01, glide[:12]
+
+
+def test_reset_object_under_the_hand_enters_again(live, episode) -> None:
+    """``reset_object`` while the fingers hold the box: the box goes back on its spot under the
+    hand, so the hand enters again (contacts off, nothing thrown) until it has left the box."""
+    bridge = live.bridge
+    _enter(live, episode)
+    closing = _drive(live, _frames_from(episode, "close", 60, 1000))
+    assert max(n for n, _, _ in closing) > 0 and bridge.counts["hand_entries"] == 1
+    reply = bridge.control("reset_object")
+    assert reply["ok"] and bridge._entering
+    home = np.array([*bridge.config.object_pos_m])
+    held = _drive(live, _hold(_frames_from(episode, "grasp", 1, 2000)[0], 20, 2000))
+    assert max(n for n, _, _ in held) == 0                       # contacts off while inside
+    pos, _ = bridge.scene.object_pose()
+    assert np.linalg.norm(pos[:2] - home) < 0.01                  # the box stayed on its spot
+    away = _drive(live, _frames_from(episode, "release", 120, 3000))
+    assert bridge.counts["hand_entries"] == 2 and not bridge._entering, away[-5:]

@@ -135,6 +135,7 @@ class BridgeControl:
     _t0_wall: float | None
     _steps_done: int
     sim_time_s: float
+    _begin_entry: Callable[[str], None]
     view_active: bool
     _build_scene: Callable[[str], None]
     _notify: Callable[[str, dict[str, Any]], None]
@@ -268,7 +269,9 @@ class BridgeControl:
 
     def _place_object(self) -> Placement:
         """The object on its spot in the chosen resting pose for the current mode (demo:
-        dropped, settled, held)."""
+        dropped, settled, held). The hand enters again (:mod:`teleop.bridge.entry`): it may be
+        where the object lands, holding it or inside it."""
+        self._begin_entry("the object was placed again")
         yaw = self.config.object_yaw_deg if self.object_rest is None or \
             self.object_rest_yaw_deg is None else self.object_rest_yaw_deg
         home, rest = rest_home(self.scene, self._object_home, self.object_rest, yaw)

@@ -21,8 +21,10 @@ through it and the object stays where it lies. Contacts come back once
    the operator keeps the hand in the object, contacts stay off.
 
 An entry starts when the hand is parked (the scene built: startup, ``choose_object``; or
-restored after an instability), when the object is placed again under the hand
-(:mod:`teleop.bridge.object_watch`), and after a **tracking gap**: a tracked frame more than
+restored after an instability), whenever the object is placed again — ``reset_object``,
+``set_object_mode``, ``set_object_rest``, back from off the table
+(:meth:`teleop.bridge.control.BridgeControl._place_object`): the hand may be where it lands —,
+and after a **tracking gap**: a tracked frame more than
 ``entry_gap_s`` after the previous tracked one on the sender's clock (``device_time_s``; or the
 clock went backwards: a restarted sender), with the operator's base then more than
 ``hand_max_step_m`` from the hand's target. The sender's clock counts the frames that never

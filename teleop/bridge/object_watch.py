@@ -66,7 +66,6 @@ class ObjectWatch:
     sim_time_s: float
     _lock: threading.Lock
     _place_object: Callable[[], Placement]
-    _begin_entry: Callable[[str], None]
     _notify: Callable[[str, dict[str, Any]], None]
 
     def _init_object_watch(self) -> None:
@@ -84,8 +83,7 @@ class ObjectWatch:
         if t_s - self._off_table_since_s < cfg.object_reset_after_s:
             return
         self._off_table_since_s = None
-        self._begin_entry("the object was placed again")
-        placement = self._place_object()
+        placement = self._place_object()   # the hand enters again (BridgeControl)
         with self._lock:
             self.counts["object_left_table"] += 1
         logger.info("%s %s: placed on its spot again", self.object_name, why)
