@@ -48,7 +48,8 @@ from sim.errors import DexaugError
 from sim.io import atomic_path
 from sim.versions import package_versions
 
-__all__ = ["COLUMNS", "DatasetError", "ObjectTable", "append", "from_fsg", "load", "save"]
+__all__ = ["COLUMNS", "DatasetError", "ObjectTable", "append", "from_fsg", "load", "save",
+           "with_rejected"]
 
 log = logging.getLogger(__name__)
 
@@ -195,6 +196,16 @@ def _concat(a: ObjectTable, b: ObjectTable) -> ObjectTable:
     attrs = dict(a.attrs)
     attrs.update(b.attrs)
     return ObjectTable(cols, a.joint_names, a.finger_names, attrs, rej)
+
+
+def with_rejected(t: ObjectTable) -> ObjectTable:
+    """The table's passing grasps followed by its rejected ones, in one table (no side table):
+    for exports that carry every grasp with its verdict."""
+    if t.rejected is None or not len(t.rejected):
+        return dataclasses.replace(t, rejected=None)
+    return dataclasses.replace(_concat(dataclasses.replace(t, rejected=None),
+                                       dataclasses.replace(t.rejected, rejected=None)),
+                               rejected=None)
 
 
 def _write_group(g: h5py.Group, t: ObjectTable) -> None:

@@ -1,0 +1,118 @@
+"""Grasp datasets in layouts other tools read (``dexaug export``): DexGraspBench's reference
+JSONL and a flat NumPy ``.npz``.
+
+Why: a dataset is only useful in the field if the tools people already run can read it.
+
+``dexgraspbench``: one JSON object per grasp, the layout of the benchmark reference this project
+is measured against (``../shared/reference/dexgraspbench/grasps.jsonl``, its README): ``object``,
+``index``, ``object_mass_kg_real``, ``object_pose_world`` and ``<palm body>_pose_world``
+(``[x, y, z, qw, qx, qy, qz]``; the palm *body* of the hand config, ``rh_palm`` for the Shadow
+Hand, not frame_palm), ``q_grasp``, ``q_pregrasp``, ``q_squeeze`` (radians by joint name), plus
+``dexaug`` with our verdict (``passed``, ``failure``, ``stages_made_by``). The object frame is the
+mesh origin, placed at ``object_pose_world`` (default: the reference's, 0.3 m above the
+origin). A grasp the validator never simulated has no pregrasp or squeeze: those keys are
+``null``. Compatibility is measured, not claimed: ``tests/test_export.py`` reads the shared
+reference file with the reader the ``dgb`` agreement uses, writes it back through this module
+and gets every pose and joint angle of the 300 lines back (1e-9), and reads an export of a
+generated dataset back into the same grasps.
+
+``npz``: every column of every object's table under ``<object>/<column>`` (contacts flat with
+their offsets, as in the HDF5), with ``<object>/joint_names`` and ``<object>/finger_names``;
+``numpy.load`` reads it with no dexaug installed.
+
+Files are written atomically (:func:`sim.io.atomic_path`). Units: metres, radians.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from augment.dataset import ObjectTable
+from sim.hand.model import Hand
+from sim.io import atomic_path, write_bytes_atomic
+from sim.transforms import pose_inv, pose_mul
+
+__all__ = ["FORMATS", "REFERENCE_OBJECT_POSE", "dexgraspbench_rows", "write_dexgraspbench",
+           "write_npz"]
+
+FORMATS: tuple[str, ...] = ("dexgraspbench", "npz")
+
+#: Where the reference file puts every object: 0.3 m above the world origin, unrotated.
+REFERENCE_OBJECT_POSE: tuple[float, ...] = (0.0, 0.0, 0.3, 1.0, 0.0, 0.0, 0.0)
+
+
+def _named(hand: Hand, q: np.ndarray) -> dict[str, float] | None:
+    if not np.isfinite(q).all():
+        return None
+    return {n: float(v) for n, v in zip(hand.joint_names, q, strict=True)}
+
+
+def _text(column: np.ndarray | None, i: int) -> str:
+    if column is None:
+        return ""
+    v = column[i]
+    return v.decode() if isinstance(v, bytes) else str(v)
+
+
+def dexgraspbench_rows(table: ObjectTable, hand: Hand, object_name: str, *,
+                       object_pose_world: Sequence[float] = REFERENCE_OBJECT_POSE,
+                       object_mass_kg: float | None = None) -> list[dict[str, Any]]:
+    """One reference-layout row per grasp of ``table`` (module docstring)."""
+    if tuple(table.joint_names) != tuple(hand.joint_names):
+        raise ValueError(f"{object_name}: the table's joints are not hand {hand.name!r}'s")
+    pose = np.asarray(object_pose_world, float)
+    obj_p, obj_q = pose[:3], pose[3:] / np.linalg.norm(pose[3:])
+    cfg = hand.config.palm
+    body_from_palm = pose_inv(cfg.pos, cfg.quat_wxyz)
+    cols = table.columns
+    n = len(table)
+    nan = np.full((n, len(hand.joint_names)), np.nan)
+    pre, sq = cols.get("pregrasp_pose", nan), cols.get("squeeze_pose", nan)
+    passed = cols.get("passed")
+    rows = []
+    for i in range(n):
+        palm = cols["palm_pose"][i]
+        palm_world = pose_mul(obj_p, obj_q, palm[:3], palm[3:])
+        body_p, body_q = pose_mul(*palm_world, *body_from_palm)
+        rows.append({
+            "object": object_name, "index": i, "object_mass_kg_real": object_mass_kg,
+            "object_pose_world": [*map(float, obj_p), *map(float, obj_q)],
+            f"{cfg.body}_pose_world": [*map(float, body_p), *map(float, body_q)],
+            "q_grasp": _named(hand, cols["hand_pose"][i]),
+            "q_pregrasp": _named(hand, pre[i]), "q_squeeze": _named(hand, sq[i]),
+            "dexaug": {"passed": None if passed is None else bool(passed[i]),
+                       "failure": _text(cols.get("failure"), i),
+                       "stages_made_by": _text(cols.get("stages_made_by"), i)}})
+    return rows
+
+
+def write_dexgraspbench(path: Path | str, tables: Mapping[str, ObjectTable], hand: Hand, *,
+                        object_pose_world: Sequence[float] = REFERENCE_OBJECT_POSE,
+                        masses_kg: Mapping[str, float] | None = None) -> int:
+    """Write every table's rows (object by object) as JSON lines to ``path``; the row count."""
+    lines = []
+    for name, table in tables.items():
+        mass = None if masses_kg is None else masses_kg.get(name)
+        lines += [json.dumps(r) for r in dexgraspbench_rows(
+            table, hand, name, object_pose_world=object_pose_world, object_mass_kg=mass)]
+    write_bytes_atomic(path, ("\n".join(lines) + "\n" if lines else "").encode())
+    return len(lines)
+
+
+def write_npz(path: Path | str, tables: Mapping[str, ObjectTable]) -> int:
+    """Write every column of every table to one ``.npz`` (module docstring); the grasp count."""
+    arrays: dict[str, np.ndarray] = {}
+    for name, table in tables.items():
+        for col, values in table.columns.items():
+            arrays[f"{name}/{col}"] = np.asarray(values if values.dtype != object
+                                                 else values.astype(str))
+        arrays[f"{name}/joint_names"] = np.array(table.joint_names)
+        arrays[f"{name}/finger_names"] = np.array(table.finger_names)
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        np.savez(fh, **arrays)
+    return sum(len(t) for t in tables.values())
