@@ -376,3 +376,20 @@ def test_two_workers_are_deterministic() -> None:
     assert key(a) == key(b)
     assert a.stats == b.stats
     assert key(a) != key(c)
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_progress_moves_while_the_search_runs(workers: int) -> None:
+    """The caller's progress sees the count grow during the search (shared memory from the pool's
+    workers), never past n, and asking for it changes no grasp."""
+    hand, cloud, ws = _toy_hand(), _cube_cloud(), _toy_workspace(middle_reachable=False)
+    params = dataclasses.replace(TOY_PARAMS, min_valid=1)
+    seen: list[int] = []
+    with_progress = generate(hand, cloud, ws, n=120, seed=5, workers=workers, time_budget_s=60,
+                             params=params, progress=seen.append)
+    plain = generate(hand, cloud, ws, n=120, seed=5, workers=workers, time_budget_s=60,
+                     params=params)
+    assert len(set(seen)) >= 3, seen                       # it moved, not only 0 and the end
+    assert seen == sorted(seen) and max(seen) <= 120 and min(seen) < max(seen)
+    assert [g.grasp.joints.tolist() for g in with_progress.grasps] == \
+        [g.grasp.joints.tolist() for g in plain.grasps]

@@ -27,7 +27,8 @@ import dataclasses
 import logging
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from concurrent.futures import wait
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -35,6 +36,7 @@ import numpy as np
 from augment.fsg.batch import Sampler, SamplerSetup
 from augment.fsg.checks import Dedup, PenetrationCheck
 from augment.fsg.params import FsgError, FsgParams, load_fsg_params
+from augment.fsg.progress import ProgressBoard, worker_slot
 from augment.fsg.result import FsgGrasp, FsgResult
 from augment.fsg.table import TablePlane
 from sim.pools import persistent_pool
@@ -53,10 +55,12 @@ log = logging.getLogger(__name__)
 WorkerOutput = tuple[list[FsgGrasp], dict[str, int], str, list[tuple[str, ...]]]
 
 
-def run_rounds(sampler: Sampler, n: int, deadline: float) -> tuple[str, list[tuple[str, ...]]]:
+def run_rounds(sampler: Sampler, n: int, deadline: float,
+               on_batch: Callable[[int], None] | None = None) -> tuple[str, list[tuple[str, ...]]]:
     """Batches of ``sampler`` in rounds of ``outer`` outer iterations, with finger iteration and
     closure relaxation, until it holds ``n`` grasps ("done") or ``time.monotonic()`` passes
-    ``deadline`` ("time budget"). Returns the reason and the finger sets used, in order."""
+    ``deadline`` ("time budget"). Returns the reason and the finger sets used, in order.
+    ``on_batch`` gets the number of grasps held after each batch (progress)."""
     fingers = sampler.setup.fingers
     sets = [fingers]
     p = sampler.params
@@ -72,6 +76,8 @@ def run_rounds(sampler: Sampler, n: int, deadline: float) -> tuple[str, list[tup
             b = min(p.outer_batch, p.outer - done_outer)
             sampler.batch(fingers, b)
             done_outer += b
+            if on_batch is not None:
+                on_batch(len(sampler.accepted))
         if len(sampler.accepted) >= n:
             return "done", sets
         now = time.monotonic()
@@ -98,11 +104,39 @@ def misses_budget(missing: int, found: int, round_s: float, left_s: float) -> bo
     return found <= 0 or missing / found * round_s > left_s
 
 
-def _worker_run(setup: SamplerSetup, seed: int, worker: int, n: int, deadline: float
-                ) -> WorkerOutput:
+def _worker_run(setup: SamplerSetup, seed: int, worker: int, n: int, deadline: float,
+                board: str | None = None) -> WorkerOutput:
     sampler = Sampler(setup, seed, worker)
-    stopped, sets = run_rounds(sampler, n, deadline)
+    if board is None:
+        stopped, sets = run_rounds(sampler, n, deadline)
+        return sampler.accepted, sampler.stats, stopped, sets
+    set_count, close = worker_slot(board, worker)
+    try:
+        stopped, sets = run_rounds(sampler, n, deadline, set_count)
+    finally:
+        close()
     return sampler.accepted, sampler.stats, stopped, sets
+
+
+def _run_pool(setup: SamplerSetup, seed: int, n: int, deadline: float, workers: int,
+              progress: Callable[[int], None] | None) -> list[WorkerOutput]:
+    """The workers' runs on the persistent pool; with ``progress``, their summed count of
+    accepted grasps (at most ``n``) reported about every 0.2 s while they run."""
+    share = math.ceil(n / workers)
+    pool = persistent_pool(workers, preload=(__name__,))
+    board = ProgressBoard(workers) if progress is not None else None
+    try:
+        futs = [pool.submit(_worker_run, setup, seed + k, k, share, deadline,
+                            None if board is None else board.name) for k in range(workers)]
+        while board is not None and progress is not None:
+            _, pending = wait(futs, timeout=0.2)
+            progress(min(n, board.total()))
+            if not pending:
+                break
+        return [f.result() for f in futs]
+    finally:
+        if board is not None:
+            board.close()
 
 
 def merge(outs: Sequence[WorkerOutput], nq: int, params: FsgParams
@@ -137,7 +171,8 @@ def generate(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: WorkspaceClo
              link_penetration: bool = False,
              exact_penetration: PenetrationCheck | None = None, seed: int = 0,
              time_budget_s: float = 60.0, workers: int = 1,
-             params: FsgParams | None = None) -> FsgResult:
+             params: FsgParams | None = None,
+             progress: Callable[[int], None] | None = None) -> FsgResult:
     """Generate up to ``n`` grasps of ``obj`` with ``hand`` from ``workspace`` (the
     :mod:`augment.fsg` overview).
 
@@ -165,6 +200,9 @@ def generate(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: WorkspaceClo
             shortfall is logged (``FsgResult.stopped == "time budget"``).
         workers: processes (1: in this process).
         params: sampler parameters (default ``[fsg]`` of ``configs/augment.toml``).
+        progress: called with the number of grasps found so far while the search runs (at
+            most ``n``; before the merge removes the workers' duplicates), about every 0.2 s
+            (:mod:`augment.fsg.progress`).
 
     Raises:
         FsgError: a workspace cloud of another hand, or bad options.
@@ -214,13 +252,12 @@ def generate(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: WorkspaceClo
     # set-up and the pool's queueing count against the budget, not only its own sampling
     deadline = t0 + time_budget_s
     if workers == 1:
-        outs = [_worker_run(setup, seed, 0, n, deadline)]
+        sampler = Sampler(setup, seed, 0)
+        stopped, sets = run_rounds(sampler, n, deadline,
+                                   None if progress is None else lambda k: progress(min(n, k)))
+        outs = [(sampler.accepted, sampler.stats, stopped, sets)]
     else:
-        share = math.ceil(n / workers)
-        pool = persistent_pool(workers, preload=(__name__,))
-        futs = [pool.submit(_worker_run, setup, seed + k, k, share, deadline)
-                for k in range(workers)]
-        outs = [f.result() for f in futs]
+        outs = _run_pool(setup, seed, n, deadline, workers, progress)
     grasps, stats, stopped, sets = merge(outs, hand.nq, setup.params)
     grasps.sort(key=lambda g: -g.epsilon)
     grasps = grasps[:n]

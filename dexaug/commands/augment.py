@@ -97,7 +97,8 @@ def generate_cmd(args: argparse.Namespace, console: Console) -> int:
                        finger_iteration=(args.finger_iteration if args.finger_iteration is not None
                                          else demo is None),
                        link_penetration=not args.no_linkpen, seed=args.seed,
-                       time_budget_s=args.budget, workers=workers)
+                       time_budget_s=args.budget, workers=workers,
+                       progress=lambda k: bar.update(task, completed=k))
         bar.update(task, completed=len(res.grasps))
         results = None
         if args.validate != "none" and res.grasps:

@@ -104,7 +104,8 @@ def augment_demo(demo: Demo, out_root: Path | str, opts: AugmentOptions | None =
                    finger_names=demo_fingers(demo),
                    link_penetration=opts.link_penetration, seed=opts.seed,
                    finger_iteration=opts.finger_iteration,
-                   time_budget_s=opts.time_budget_s, workers=opts.workers)
+                   time_budget_s=opts.time_budget_s, workers=opts.workers,
+                   progress=lambda k: tick("fsg", k, opts.n))
     tick("fsg", len(res.grasps), opts.n)
     timings["fsg"] = time.perf_counter() - t0
 

@@ -1,0 +1,61 @@
+"""FSG's progress while it runs: the workers' accepted-grasp counts in shared memory
+(:class:`ProgressBoard`), so a caller shows a count that moves instead of "0 / n" until the
+stage ends.
+
+Why shared memory: the workers live in a persistent process pool started long before this call
+(:mod:`sim.pools`), so nothing can be inherited; a named block of ``workers`` int64 slots is
+the cheapest channel (one store per batch, no process, no socket). Each worker writes only its
+own slot; the parent sums. A worker attaching to the block removes it from the resource
+tracker: the block belongs to the parent, which unlinks it, and a tracked attachment would be
+unlinked (or warned about) when the worker process exits.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from multiprocessing import resource_tracker, shared_memory
+
+import numpy as np
+
+__all__ = ["ProgressBoard", "worker_slot"]
+
+
+class ProgressBoard:
+    """``workers`` counters in a named shared-memory block, created by the caller of FSG."""
+
+    def __init__(self, workers: int) -> None:
+        self._shm = shared_memory.SharedMemory(create=True, size=8 * max(workers, 1))
+        self._counts = np.ndarray((max(workers, 1),), np.int64, buffer=self._shm.buf)
+        self._counts[:] = 0
+
+    @property
+    def name(self) -> str:
+        """The block's name, for :func:`worker_slot` in a worker."""
+        return self._shm.name
+
+    def total(self) -> int:
+        """Grasps accepted so far, over all workers (before the merge's deduplication)."""
+        return int(self._counts.sum())
+
+    def close(self) -> None:
+        """Free and remove the block (after every worker has finished)."""
+        del self._counts
+        self._shm.close()
+        self._shm.unlink()
+
+
+def worker_slot(name: str, worker: int) -> tuple[Callable[[int], None], Callable[[], None]]:
+    """In a worker: a setter of its slot of the board ``name`` and a closer of the attachment."""
+    shm = shared_memory.SharedMemory(name=name)
+    resource_tracker.unregister(shm._name, "shared_memory")  # the parent's block: not ours to unlink
+    counts = np.ndarray((shm.size // 8,), np.int64, buffer=shm.buf)
+
+    def set_count(k: int) -> None:
+        counts[worker] = k
+
+    def close() -> None:
+        nonlocal counts
+        del counts
+        shm.close()
+
+    return set_count, close
