@@ -184,18 +184,31 @@ def test_entry_through_the_object_line(episode, tmp_path: Path, monkeypatch, ent
 
 
 def test_reset_object_under_the_hand_enters_again(live, episode) -> None:
-    """``reset_object`` while the fingers hold the box: the box goes back on its spot under the
-    hand, so the hand enters again (contacts off, nothing thrown) until it has left the box."""
+    """The hand closed where the box's spot is (the box pushed aside first), then ``reset_object``
+    puts the box back on its spot, into the closed fingers: the hand enters again (contacts off,
+    nothing thrown) until it has left the box; a hand only touching it keeps its contacts."""
+    import mujoco
+
     bridge = live.bridge
     _enter(live, episode)
-    closing = _drive(live, _frames_from(episode, "close", 60, 1000))
-    assert max(n for n, _, _ in closing) > 0 and bridge.counts["hand_entries"] == 1
+    sc = bridge.scene
+    home, quat = sc.object_pose()
+    sc.set_object_pose(home + np.array([0.0, 0.25, 0.0]), quat)   # pushed aside
+    mujoco.mj_forward(sc.model, sc.data)
+    closing = _frames_from(episode, "close", 60, 1000)            # closes on the empty spot,
+    wrist = closing[-1].right.positions[0] + bridge.config.world_offset_m
+    into = (home - wrist) / np.linalg.norm(home - wrist) * 0.04   # 4 cm further in
+    _drive(live, [dataclasses.replace(f, right=dataclasses.replace(
+        f.right, positions=f.right.positions + into)) for f in closing])
     reply = bridge.control("reset_object")
     assert reply["ok"] and bridge._entering
-    home = np.array([*bridge.config.object_pos_m])
-    held = _drive(live, _hold(_frames_from(episode, "grasp", 1, 2000)[0], 20, 2000))
-    assert max(n for n, _, _ in held) == 0                       # contacts off while inside
-    pos, _ = bridge.scene.object_pose()
-    assert np.linalg.norm(pos[:2] - home) < 0.01                  # the box stayed on its spot
-    away = _drive(live, _frames_from(episode, "release", 120, 3000))
-    assert bridge.counts["hand_entries"] == 2 and not bridge._entering, away[-5:]
+    last = _frames_from(episode, "grasp", 1, 2000)[0]
+    held = _drive(live, _hold(dataclasses.replace(last, right=dataclasses.replace(
+        last.right, positions=last.right.positions + into)), 20, 2000))
+    assert max(n for n, _, _ in held) == 0                        # contacts off while inside
+    pos, _ = sc.object_pose()
+    assert np.linalg.norm(pos[:2] - home[:2]) < 0.01              # the box stayed on its spot
+    _drive(live, _frames_from(episode, "release", 120, 3000))
+    assert bridge.counts["hand_entries"] == 2 and not bridge._entering
+    # a reset with the hand clear: contacts stay on
+    assert bridge.control("reset_object")["ok"] and not bridge._entering

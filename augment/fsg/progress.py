@@ -5,15 +5,17 @@ stage ends.
 Why shared memory: the workers live in a persistent process pool started long before this call
 (:mod:`sim.pools`), so nothing can be inherited; a named block of ``workers`` int64 slots is
 the cheapest channel (one store per batch, no process, no socket). Each worker writes only its
-own slot; the parent sums. A worker attaching to the block removes it from the resource
-tracker: the block belongs to the parent, which unlinks it, and a tracked attachment would be
-unlinked (or warned about) when the worker process exits.
+own slot; the parent sums and unlinks the block. The pool's workers share the parent's
+resource tracker (fork server), so a worker's attachment is the parent's own registration: the
+worker only closes its mapping (unregistering it there made the tracker fail on the parent's
+unlink).
 """
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Callable
-from multiprocessing import resource_tracker, shared_memory
+from multiprocessing import shared_memory
 
 import numpy as np
 
@@ -41,13 +43,13 @@ class ProgressBoard:
         """Free and remove the block (after every worker has finished)."""
         del self._counts
         self._shm.close()
-        self._shm.unlink()
+        with contextlib.suppress(FileNotFoundError):   # already gone: a worker's own tracker
+            self._shm.unlink()
 
 
 def worker_slot(name: str, worker: int) -> tuple[Callable[[int], None], Callable[[], None]]:
     """In a worker: a setter of its slot of the board ``name`` and a closer of the attachment."""
     shm = shared_memory.SharedMemory(name=name)
-    resource_tracker.unregister(shm._name, "shared_memory")  # the parent's block: not ours to unlink
     counts = np.ndarray((shm.size // 8,), np.int64, buffer=shm.buf)
 
     def set_count(k: int) -> None:

@@ -136,6 +136,7 @@ class BridgeControl:
     _steps_done: int
     sim_time_s: float
     _begin_entry: Callable[[str], None]
+    _entry_after_placement: Callable[[], None]
     view_active: bool
     _build_scene: Callable[[str], None]
     _notify: Callable[[str, dict[str, Any]], None]
@@ -269,13 +270,15 @@ class BridgeControl:
 
     def _place_object(self) -> Placement:
         """The object on its spot in the chosen resting pose for the current mode (demo:
-        dropped, settled, held). The hand enters again (:mod:`teleop.bridge.entry`): it may be
-        where the object lands, holding it or inside it."""
+        dropped, settled, held). Hand–object contacts are off while it is placed (the hand may
+        be where it lands); then the hand enters again (:mod:`teleop.bridge.entry`) only if it
+        is deep inside the object: a hand at the pre-grasp, touching it, goes on grasping."""
         self._begin_entry("the object was placed again")
         yaw = self.config.object_yaw_deg if self.object_rest is None or \
             self.object_rest_yaw_deg is None else self.object_rest_yaw_deg
         home, rest = rest_home(self.scene, self._object_home, self.object_rest, yaw)
         self.placement = place_object(self.scene, home, self.object_mode, self.config, rest)
+        self._entry_after_placement()
         return self.placement
 
     def _cmd_set_object_rest(self, args: dict[str, Any]) -> dict[str, Any]:

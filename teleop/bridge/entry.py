@@ -21,10 +21,11 @@ through it and the object stays where it lies. Contacts come back once
    the operator keeps the hand in the object, contacts stay off.
 
 An entry starts when the hand is parked (the scene built: startup, ``choose_object``; or
-restored after an instability), whenever the object is placed again — ``reset_object``,
+restored after an instability), when the object is placed again — ``reset_object``,
 ``set_object_mode``, ``set_object_rest``, back from off the table
-(:meth:`teleop.bridge.control.BridgeControl._place_object`): the hand may be where it lands —,
-and after a **tracking gap**: a tracked frame more than
+(:meth:`teleop.bridge.control.BridgeControl._place_object`) — into the hand (contacts are off
+while it is placed; a hand touching it no deeper than :data:`PLACED_OVERLAP_M` keeps its
+contacts at once), and after a **tracking gap**: a tracked frame more than
 ``entry_gap_s`` after the previous tracked one on the sender's clock (``device_time_s``; or the
 clock went backwards: a restarted sender), with the operator's base then more than
 ``hand_max_step_m`` from the hand's target. The sender's clock counts the frames that never
@@ -58,7 +59,12 @@ from sim.world.contacts import contacts_between
 from sim.world.scene import Scene
 from teleop.bridge.config import BridgeConfig
 
-__all__ = ["BridgeEntry", "ContactSwitch"]
+__all__ = ["PLACED_OVERLAP_M", "BridgeEntry", "ContactSwitch"]
+
+#: After the object is placed again, a hand at most this deep in it (metres) keeps its contacts:
+#: a light touch (a pre-grasp, fingers on the surface) the solver resolves in a step, without
+#: throwing anything; deeper overlap (the object placed into a closed hand) makes the hand enter.
+PLACED_OVERLAP_M = 0.003
 
 logger = logging.getLogger(__name__)
 Array = np.ndarray
@@ -111,9 +117,10 @@ class ContactSwitch:
         m.geom_conaffinity[self._obj] = self._conaffinity
         self.off = False
 
-    def hand_in_object(self) -> bool:
-        """A hand geom penetrates the object in the scene's current positions, with contacts on
-        (computed on a scratch copy: the live data and the switch stay as they are)."""
+    def hand_in_object(self, depth_m: float = 0.0) -> bool:
+        """A hand geom penetrates the object (deeper than ``depth_m``, metres) in the scene's
+        current positions, with contacts on (computed on a scratch copy: the live data and the
+        switch stay as they are)."""
         sc = self.scene
         m = sc.model
         if self._scratch is None:
@@ -129,7 +136,7 @@ class ContactSwitch:
             if off:
                 self.switch_off()
         c = contacts_between(m, s, sc.hand_geom_mask, sc.obj_geom_mask)
-        return bool(len(c)) and float(c.dist.min()) < 0.0
+        return bool(len(c)) and float(c.dist.min()) < -depth_m
 
 
 def _angle_deg(q1: Array, q2: Array) -> float:
@@ -187,6 +194,17 @@ class BridgeEntry:
         logger.info("%s, the operator's hand elsewhere: the hand enters again with hand–object "
                     "contacts off (bridge.entry_gap_s = %g s)", gap, self.config.entry_gap_s)
         self._begin_entry(gap)
+
+    def _entry_after_placement(self) -> None:
+        """Right after the object was placed again (contacts off for it): contacts on at once
+        when the hand is at the operator's pose and no deeper than :data:`PLACED_OVERLAP_M` in
+        the object — a hand at the pre-grasp, touching the object, goes on grasping; deeper, the
+        hand enters as after a gap."""
+        if self._entering and self._at_target and \
+                not self._contact_switch().hand_in_object(PLACED_OVERLAP_M):
+            self._contact_switch().switch_on()
+            self._entering = False
+            logger.info("object placed again with the hand clear of it: hand–object contacts on")
 
     def _end_entry_when_clear(self) -> None:
         """After physics steps: contacts on again once the hand has arrived at the operator's
