@@ -11,6 +11,7 @@ order, progress, a dexaug error, an unexpected error, bad requests.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import json
 import shutil
@@ -243,5 +244,17 @@ def test_augment_a_demo_from_the_page(chromium, tmp_path: Path) -> None:
         assert row.locator("a.report-link").get_attribute("href") == href
         assert not again.jobs.snapshot()
         assert not [c for c in console if c.startswith(("error", "pageerror"))], console
+        page.goto("about:blank")
+
+    # other options (as `make demo`'s run is to the dashboard's): shown as an earlier result,
+    # with the button that augments it again under the dashboard's
+    other = dataclasses.replace(cfg, options=dataclasses.replace(opts, n=30))
+    with Dashboard(other) as third:
+        page.goto(third.start())
+        page.wait_for_function("() => document.body.dataset.loaded === '1'", timeout=30_000)
+        note = row.locator(".done-note").inner_text()
+        assert "other options" in note and "20 grasps" in note, note
+        assert row.locator(".n-passed").inner_text() == shown["n-passed"]
+        assert row.locator("button.augment").count() == 1
         page.goto("about:blank")
     print(f"dashboard test wall time {time.perf_counter() - t0:.1f} s")

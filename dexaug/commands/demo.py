@@ -42,7 +42,7 @@ def _demo_args(p: argparse.ArgumentParser) -> None:
                    default=REPO_ROOT / "recordings" / "demo_005_tomato_soup_can.mcap",
                    help="the demonstration session to augment (default: the committed Shadow "
                    "Hand grasp of the tomato soup can)")
-    p.add_argument("--out", type=Path, default=Path("datasets/demo"),
+    p.add_argument("--out", type=Path, default=Path("datasets"),
                    help="output folder; default %(default)s")
     p.add_argument("--n", type=count, default=100, help="grasps to generate; default %(default)s")
     actions = p.add_subparsers(dest="action", metavar="ACTION", title="actions (none: the main job)")

@@ -25,7 +25,7 @@ from typing import Any
 from urllib.parse import quote
 
 from dexaug.pipeline.options import AugmentOptions, demo_dir
-from dexaug.pipeline.summary import demo_grasp_text, finished
+from dexaug.pipeline.summary import demo_grasp_text, earlier, finished
 from sim.demo import Demo
 from sim.errors import DexaugError
 from teleop.record.demos import extract_demos
@@ -186,11 +186,17 @@ class Catalog:
         return None
 
     def result(self, entry: DemoEntry) -> dict[str, Any] | None:
-        """The finished result of ``entry`` under the dashboard's options, or None."""
-        done = finished(demo_dir(self.out_root, entry.demo), entry.demo, self.opts)
-        if done is None:
+        """The finished result of ``entry`` under the dashboard's options, else an earlier one
+        under other options (``earlier``: True, with the grasps it asked for), or None."""
+        folder = demo_dir(self.out_root, entry.demo)
+        done = finished(folder, entry.demo, self.opts)
+        if done is not None:
+            return {**result_view({**done.to_json(), "skipped": True}, self.out_root),
+                    "earlier": False}
+        old = earlier(folder, entry.demo, self.opts)
+        if old is None:
             return None
-        return result_view({**done.to_json(), "skipped": True}, self.out_root)
+        return {**result_view({**old.to_json(), "skipped": True}, self.out_root), "earlier": True}
 
     def to_json(self) -> list[dict[str, Any]]:
         """The listing for the page (a fresh scan)."""

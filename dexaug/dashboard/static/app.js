@@ -62,8 +62,12 @@ function resultBlock(r) {
   const link = r.report_url
     ? el("a", { class: "report-link", href: r.report_url, target: "_blank", text: "report" })
     : el("span", { text: "no report (gallery 0)" });
-  return el("div", {}, el("div", { class: "done-note",
-    text: r.skipped ? "Augmented earlier with these options." : "Augmentation finished." }),
+  const note = r.earlier
+    ? `Augmented earlier with other options (${r.requested} grasps asked for, e.g. by make demo); ` +
+      "augmenting again uses the dashboard's and replaces it."
+    : r.skipped ? "Augmented earlier with these options." : "Augmentation finished.";
+  return el("div", {}, el("div", { class: r.earlier ? "done-note earlier" : "done-note",
+    text: note }),
     nums, demoGrasp, failures ? el("div", { text: `failures: ${failures}` }) : null, link);
 }
 
@@ -96,8 +100,10 @@ function renderStatus(key) {
                augmentButton(d, "Retry"));
     return;
   }
-  if (d.result) box.append(resultBlock(d.result));
-  else box.append(augmentButton(d, "Augment"));
+  if (d.result) {
+    box.append(resultBlock(d.result));
+    if (d.result.earlier) box.append(augmentButton(d, "Augment with the dashboard's options"));
+  } else box.append(augmentButton(d, "Augment"));
 }
 
 async function startJob(key, button) {
