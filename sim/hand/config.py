@@ -78,6 +78,10 @@ class HandConfig:
     fingertip_width_m: float   # w_tip of the paper's eq. 2: contact width of one fingertip
     link_radius_m: float       # finger links' radius about their skeleton (FSG's link check)
     postures: dict[str, dict[str, float]] = field(default_factory=dict)
+    #: ``[teleop] servo_kp_scale``: this hand's servo gain scale in the teleop bridge, over the
+    #: bridge's own (None: the bridge's); a hand whose light links go unstable at the bridge's
+    #: scale names a lower one here
+    teleop_kp_scale: float | None = None
 
     def finger(self, name: str) -> FingerConfig:
         for f in self.fingers:
@@ -180,7 +184,11 @@ def load_hand_config(name_or_path: str | Path) -> HandConfig:
         known = hand_names()
         raise ConfigError(f"unknown hand {name_or_path!r}: no {path}; known hands: {known}")
     root = load_toml(path)
-    root.reject_unknown({"model", "palm", "fingers", "grasp", "geometry"})
+    root.reject_unknown({"model", "palm", "fingers", "grasp", "geometry", "teleop"})
+    teleop = root.section("teleop", {})
+    teleop.reject_unknown({"servo_kp_scale"})
+    teleop_kp = (teleop.float("servo_kp_scale", min=0.1, max=100.0)
+                 if "servo_kp_scale" in teleop else None)
     geometry = root.section("geometry")
     geometry.reject_unknown({"fingertip_width_m", "link_radius_m"})
     sizes = {k: geometry.float(k) for k in ("fingertip_width_m", "link_radius_m")}
@@ -225,4 +233,5 @@ def load_hand_config(name_or_path: str | Path) -> HandConfig:
                         box_half_extents=half),
         fingers=fingers,
         postures=postures,
+        teleop_kp_scale=teleop_kp,
     )

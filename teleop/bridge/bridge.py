@@ -65,7 +65,7 @@ from sim.hand.model import Hand
 from sim.world.objects import load_object
 from sim.world.scene import PhysicsOptions, Scene
 from teleop import keys as zkeys
-from teleop.bridge.config import BridgeConfig, check_object_mode, load_bridge_config
+from teleop.bridge.config import BridgeConfig, check_object_mode, hand_servos, load_bridge_config
 from teleop.bridge.control import BridgeControl
 from teleop.bridge.faults import BridgeFaults
 from teleop.bridge.scene_contacts import contact_records, tip_finger_bodies
@@ -150,9 +150,9 @@ class Bridge(BridgeFaults, BridgeControl):
     def _build_scene(self, object_name: str) -> None:
         obj = load_object(object_name)
         cfg = self.config
-        self.scene = Scene(self.hand, obj, table=cfg.table, object_hold=True, servos=cfg.servos,
-                           floor_z_m=float(cfg.world_offset_m[2]) if cfg.floor else None,  # operator's
-                           physics=PhysicsOptions(timestep_s=cfg.timestep_s))
+        floor = float(cfg.world_offset_m[2]) if cfg.floor else None   # the operator's floor
+        self.scene = Scene(self.hand, obj, object_hold=True, servos=hand_servos(cfg, self.hand),
+                           table=cfg.table, floor_z_m=floor, physics=PhysicsOptions(cfg.timestep_s))
         self.object_name = object_name
         self._tip_fingers = tip_finger_bodies(self.scene)
         self._object_home = self._home_pose(obj)

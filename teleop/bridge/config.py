@@ -16,11 +16,12 @@ import numpy as np
 
 from sim.config import Section, load_toml
 from sim.errors import ConfigError
+from sim.hand.model import Hand
 from sim.world.hand_spec import ServoSettings
 from teleop.bridge.grasp_assist import AssistSettings
 from teleop.retarget.config import TELEOP_CONFIG
 
-__all__ = ["OBJECT_MODES", "BridgeConfig", "check_object_mode", "load_bridge_config"]
+__all__ = ["OBJECT_MODES", "BridgeConfig", "check_object_mode", "hand_servos", "load_bridge_config"]
 
 Array = np.ndarray
 
@@ -146,6 +147,14 @@ def load_bridge_config(path: Path | str | None = None) -> BridgeConfig:
             ramp_s=sec.float("assist_ramp_s", d.assist.ramp_s, min=0.0, max=5.0),
             release_s=sec.float("assist_release_s", d.assist.release_s, min=0.0, max=5.0)),
     )
+
+
+def hand_servos(cfg: BridgeConfig, hand: Hand) -> ServoSettings:
+    """The servos the bridge gives ``hand``: its ``hand.toml`` ``[teleop] servo_kp_scale`` when
+    it names one (a hand that is unstable at the bridge's scale, such as the LEAP), else the
+    bridge's ``servo_kp_scale``."""
+    scale = hand.config.teleop_kp_scale
+    return cfg.servos if scale is None else ServoSettings(kp_scale=scale)
 
 
 def check_object_mode(mode: Any, where: str) -> str:
