@@ -24,8 +24,8 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import quote
 
-from dexaug.pipeline.options import AugmentOptions, demo_dir
-from dexaug.pipeline.summary import demo_grasp_text, earlier, finished
+from dexaug.pipeline.options import AugmentOptions, demo_dir, run_key
+from dexaug.pipeline.summary import demo_grasp_text, stored
 from sim.demo import Demo
 from sim.errors import DexaugError
 from teleop.record.demos import extract_demos
@@ -186,17 +186,15 @@ class Catalog:
         return None
 
     def result(self, entry: DemoEntry) -> dict[str, Any] | None:
-        """The finished result of ``entry`` under the dashboard's options, else an earlier one
-        under other options (``earlier``: True, with the grasps it asked for), or None."""
-        folder = demo_dir(self.out_root, entry.demo)
-        done = finished(folder, entry.demo, self.opts)
-        if done is not None:
-            return {**result_view({**done.to_json(), "skipped": True}, self.out_root),
-                    "earlier": False}
-        old = earlier(folder, entry.demo, self.opts)
-        if old is None:
+        """The result of ``entry`` in the output folder, or None: finished under the dashboard's
+        options and today's configs (``earlier``: False), or an earlier one made under others
+        (``make demo``'s, a CLI run with another ``--n``: ``earlier`` True, and augmenting again
+        replaces it)."""
+        summary = stored(demo_dir(self.out_root, entry.demo), entry.demo)
+        if summary is None:
             return None
-        return {**result_view({**old.to_json(), "skipped": True}, self.out_root), "earlier": True}
+        return {**result_view({**summary.to_json(), "skipped": True}, self.out_root),
+                "earlier": summary.run_key != run_key(entry.demo, self.opts)}
 
     def to_json(self) -> list[dict[str, Any]]:
         """The listing for the page (a fresh scan)."""

@@ -16,7 +16,7 @@ from typing import Any
 from dexaug.pipeline.options import AugmentOptions, run_key
 from sim.demo import Demo
 
-__all__ = ["DemoSummary", "demo_grasp_text", "demo_verdict", "earlier", "finished"]
+__all__ = ["DemoSummary", "demo_grasp_text", "demo_verdict", "finished", "stored"]
 
 log = logging.getLogger(__name__)
 
@@ -88,8 +88,9 @@ def demo_grasp_text(verdict: dict[str, Any] | None) -> str:
     return f"{head} — {verdict['protocol']}{drift}"
 
 
-def _read_summary(folder: Path | str, demo: Demo) -> DemoSummary | None:
-    """``folder``'s summary of ``demo`` whose dataset still exists, or None."""
+def stored(folder: Path | str, demo: Demo) -> DemoSummary | None:
+    """``folder``'s summary of ``demo`` whose dataset still exists, under whatever options and
+    configs it was made (compare its ``run_key`` with :func:`run_key`), or None."""
     path = Path(folder) / "summary.json"
     if not path.is_file():
         return None
@@ -109,13 +110,5 @@ def finished(folder: Path | str, demo: Demo, opts: AugmentOptions) -> DemoSummar
     """The summary of ``folder`` when it holds ``demo`` finished under ``opts`` and today's
     configs (:func:`run_key`; what ``augment_demo`` would skip), else None: lets a caller (the
     dashboard) show results without re-running."""
-    summary = _read_summary(folder, demo)
+    summary = stored(folder, demo)
     return summary if summary is not None and summary.run_key == run_key(demo, opts) else None
-
-
-def earlier(folder: Path | str, demo: Demo, opts: AugmentOptions) -> DemoSummary | None:
-    """The summary of ``folder`` when it holds ``demo`` augmented under *other* options or
-    configs than ``opts`` (``make demo``'s run, a CLI run with another ``--n``), else None: the
-    dashboard shows such a result as earlier, and augmenting again replaces it."""
-    summary = _read_summary(folder, demo)
-    return summary if summary is not None and summary.run_key != run_key(demo, opts) else None

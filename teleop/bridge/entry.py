@@ -200,9 +200,9 @@ class BridgeEntry:
         when the hand is at the operator's pose and no deeper than :data:`PLACED_OVERLAP_M` in
         the object — a hand at the pre-grasp, touching the object, goes on grasping; deeper, the
         hand enters as after a gap."""
-        if self._entering and self._at_target and \
-                not self._contact_switch().hand_in_object(PLACED_OVERLAP_M):
-            self._contact_switch().switch_on()
+        switch = self._contact_switch()
+        if self._entering and self._at_target and not switch.hand_in_object(PLACED_OVERLAP_M):
+            switch.switch_on()
             self._entering = False
             logger.info("object placed again with the hand clear of it: hand–object contacts on")
 
