@@ -20,7 +20,7 @@ from sim.hand.model import Hand
 from sim.pools import persistent_pool
 from sim.validate.config import ValidateConfig
 from sim.validate.result import ValidationResult
-from sim.validate.validator import Validator
+from sim.validate.validator import BATCH_SIMS, Validator
 from sim.world.objects import load_object
 
 _VALIDATORS: dict[tuple[str, str, str | None], Validator] = {}
@@ -66,8 +66,8 @@ class ScenePenetration:
 def _validate_chunk(args: tuple[str, str, str | None, Sequence[Grasp], str, str | None]
                     ) -> list[ValidationResult]:
     hand, obj, config_path, grasps, protocol, convention = args
-    v = cached_validator(hand, obj, config_path)
-    return [v.validate(g, protocol, squeeze_convention=convention) for g in grasps]
+    return cached_validator(hand, obj, config_path).validate_all(
+        grasps, protocol, squeeze_convention=convention)
 
 
 def default_workers() -> int:
@@ -79,20 +79,17 @@ def validate_many(hand: str, obj: str, grasps: Sequence[Grasp], protocol: str = 
                   squeeze_convention: str | None = None,
                   progress: Callable[[int], None] | None = None) -> list[ValidationResult]:
     """Validate ``grasps`` of hand config ``hand`` on object ``obj`` with ``workers`` processes
-    (default: all cores). ``squeeze_convention`` (dgb) overrides the config's;
+    (default: all cores), each stepping its grasps on ``mujoco.batch``
+    (:meth:`Validator.validate_all`). ``squeeze_convention`` (dgb) overrides the config's;
     ``progress(n_done)`` is called as results arrive."""
     workers = workers or default_workers()
     cfg = str(config_path) if config_path else None
     if workers == 1 or len(grasps) <= 1:
-        v = cached_validator(hand, obj, cfg)
-        out = []
-        for g in grasps:
-            out.append(v.validate(g, protocol, squeeze_convention=squeeze_convention))
-            if progress:
-                progress(len(out))
-        return out
-    # small chunks: progress stays live and the two workers finish close together
-    size = max(1, min(16, len(grasps) // (workers * 4)))
+        return cached_validator(hand, obj, cfg).validate_all(
+            grasps, protocol, squeeze_convention=squeeze_convention, progress=progress)
+    # chunks of a batch's size: each worker's batch is full, progress stays live, and the
+    # workers finish close together
+    size = max(1, min(BATCH_SIMS, len(grasps) // (workers * 2)))
     chunks = [(hand, obj, cfg, list(grasps[i:i + size]), protocol, squeeze_convention)
               for i in range(0, len(grasps), size)]
     results: list[ValidationResult] = []

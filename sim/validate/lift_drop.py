@@ -12,41 +12,41 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-import mujoco
 import numpy as np
 
 from sim.hand.model import Hand
 from sim.transforms import quat_angle, rotate
 from sim.validate.config import GRAVITY_MPS2, LiftDropParams
+from sim.validate.program import Advance, Program
 from sim.validate.result import Failure, PhaseResult, ValidationResult
-from sim.validate.stepping import drift, relative_object_pose, run_for
+from sim.validate.stepping import drift, relative_object_pose
 from sim.validate.targets import GraspTargets
 from sim.world.contacts import contacts_between
 from sim.world.scene import Scene
 
-__all__ = ["Observer", "run_lift_drop"]
+__all__ = ["Observer", "lift_drop"]
 
 #: called with the phase name ("lift", "hold") after every chunk of steps, for diagnosis
 Observer = Callable[[str], None]
 
 
-def run_lift_drop(scene: Scene, hand: Hand, p: LiftDropParams, targets: GraspTargets,
-                  result: ValidationResult, observe: Observer | None = None) -> None:
-    """Run lift, hold and drop on the closed grasp in ``scene``; fills ``result`` (phases
-    ``lift``, ``hold``, ``drop``, the worst drift, the verdict). ``observe`` sees the scene after
-    every lift chunk (1/50 of the lift) and every hold chunk of the same length; stepping in
-    chunks changes nothing (MuJoCo steps the same either way)."""
+def lift_drop(scene: Scene, hand: Hand, p: LiftDropParams, targets: GraspTargets,
+              result: ValidationResult, observe: Observer | None = None) -> Program:
+    """Lift, hold and drop the closed grasp in ``scene`` (a program, :mod:`sim.validate.program`);
+    fills ``result`` (phases ``lift``, ``hold``, ``drop``, the worst drift, the verdict).
+    ``observe`` sees the scene after every lift chunk (1/50 of the lift) and every hold chunk of
+    the same length; stepping in chunks changes nothing (MuJoCo steps the same either way)."""
     m, d = scene.model, scene.data
     ref_pos, ref_quat = relative_object_pose(scene)
     start = d.mocap_pos[scene.mocap_id].copy()
-    m.opt.gravity[:] = (0.0, 0.0, -GRAVITY_MPS2)
+    gravity = np.array([0.0, 0.0, -GRAVITY_MPS2])
     lift_steps = max(round(p.lift_time_s / m.opt.timestep), 1)
     chunk = max(lift_steps // 50, 1)
     ok = True
     for k in range(0, lift_steps, chunk):
         rise = p.lift_height_m * min(k + chunk, lift_steps) / lift_steps
-        d.mocap_pos[scene.mocap_id] = start + np.array([0.0, 0.0, rise])
-        mujoco.mj_step(m, d, nstep=min(chunk, lift_steps - k))
+        yield Advance(min(chunk, lift_steps - k), gravity=gravity if k == 0 else None,
+                      mocap_pos=start + np.array([0.0, 0.0, rise]))
         if observe is not None:
             observe("lift")
         disp, rot = drift(scene, ref_pos, ref_quat)
@@ -56,9 +56,11 @@ def run_lift_drop(scene: Scene, hand: Hand, p: LiftDropParams, targets: GraspTar
     result.phases["lift"] = PhaseResult(ok, disp, rot)
     if ok:
         hold_steps = max(round(p.hold_time_s / m.opt.timestep), 0)
-        for k in range(0, hold_steps, chunk):
-            mujoco.mj_step(m, d, nstep=min(chunk, hold_steps - k))
-            if observe is not None:
+        if observe is None:
+            yield Advance(hold_steps)
+        else:
+            for k in range(0, hold_steps, chunk):
+                yield Advance(min(chunk, hold_steps - k))
                 observe("hold")
         disp, rot = drift(scene, ref_pos, ref_quat)
         ok = bool(disp <= p.max_displacement_m and rot <= p.max_rotation_rad)
@@ -67,7 +69,7 @@ def run_lift_drop(scene: Scene, hand: Hand, p: LiftDropParams, targets: GraspTar
     if not ok:
         result.failure = Failure.SLIPPED
         return
-    _release(scene, hand, p, targets, ref_quat, result)
+    yield from _release(scene, hand, p, targets, ref_quat, result)
 
 
 #: joint speed (rad/s or m/s) below which a hand counts as done opening
@@ -79,7 +81,7 @@ def _still_opening(scene: Scene) -> bool:
 
 
 def _release(scene: Scene, hand: Hand, p: LiftDropParams, targets: GraspTargets,
-             ref_quat: np.ndarray, result: ValidationResult) -> None:
+             ref_quat: np.ndarray, result: ValidationResult) -> Program:
     """Open the hand and pull the object out of the palm: a real grasp lets go.
 
     The release direction is frame_palm +y (out of the palm face, toward the pulps: DESIGN §3)
@@ -98,7 +100,6 @@ def _release(scene: Scene, hand: Hand, p: LiftDropParams, targets: GraspTargets,
     # the centre of mass, not the object frame's origin: a long object turning as it falls
     # (a screwdriver whose origin is at one end) swings its origin toward the palm
     start_com = d.xipos[scene.obj_body].copy()
-    m.opt.gravity[:] = GRAVITY_MPS2 * release_dir
 
     def moved_out() -> float:
         return float((d.xipos[scene.obj_body] - start_com) @ release_dir)
@@ -107,7 +108,9 @@ def _release(scene: Scene, hand: Hand, p: LiftDropParams, targets: GraspTargets,
         touching = contacts_between(m, d, scene.hand_geom_mask, scene.obj_geom_mask).dist <= 0.0
         return fall_m >= p.drop_min_fall_m and not touching.any()
 
-    run_for(scene, 0.5 * p.drop_time_s, scene.ctrl_for(targets.squeeze), scene.ctrl_for(hand.open_pose))
+    opening = max(round(0.5 * p.drop_time_s / m.opt.timestep), 0)
+    yield Advance(opening, gravity=GRAVITY_MPS2 * release_dir,
+                  ctrl_from=scene.ctrl_for(targets.squeeze), ctrl_to=scene.ctrl_for(hand.open_pose))
     fall, elapsed_s = moved_out(), 0.5 * p.drop_time_s
     chunk = max(round(0.05 / m.opt.timestep), 1)
     # until the object has left; past drop_time_s only while the fingers are still opening
@@ -115,7 +118,7 @@ def _release(scene: Scene, hand: Hand, p: LiftDropParams, targets: GraspTargets,
     while not (dropped := released(fall)) and elapsed_s < p.drop_max_time_s:
         if elapsed_s >= p.drop_time_s and not _still_opening(scene):
             break
-        mujoco.mj_step(m, d, nstep=chunk)
+        yield Advance(chunk)
         elapsed_s += chunk * m.opt.timestep
         fall = moved_out()
     _, rel_quat = relative_object_pose(scene)

@@ -18,6 +18,7 @@ default: the validation scenes have none.
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import mujoco
@@ -200,6 +201,7 @@ class Scene:
     def _index(self) -> None:
         m = self.model
         self.mocap_id = m.body("hand_target").mocapid[0]
+        self.palm_body = m.body(HAND_PREFIX + self.hand.config.palm.body).id
         self.base_qadr = m.joint("hand_free").qposadr[0]
         self.base_dadr = m.joint("hand_free").dofadr[0]
         joints = {m.joint(j).name for j in range(m.njnt)}
@@ -235,6 +237,14 @@ class Scene:
         self.table_geom = m.geom("table").id if self.table else -1
         self.floor_geom = m.geom("floor").id if self.floor_z_m is not None else -1
         self._hold_eq = m.equality(_HOLD).id if self.object_hold else -1
+
+    def over(self, data: mujoco.MjData) -> Scene:
+        """This scene read over another MjData of its model: same model, indices and masks,
+        ``data`` as its state. What a batch runner gives a protocol for each simulation it
+        steps (:mod:`sim.validate.batched`)."""
+        view = copy.copy(self)
+        view.data = data
+        return view
 
     # ---------------------------------------------------------------------------------- driving
 
@@ -327,8 +337,7 @@ class Scene:
 
     def palm_world_pose(self) -> tuple[np.ndarray, np.ndarray]:
         """frame_palm in the world, from the simulated hand state."""
-        d, cfg = self.data, self.hand.config.palm
-        b = self.model.body(HAND_PREFIX + cfg.body).id
+        d, cfg, b = self.data, self.hand.config.palm, self.palm_body
         pos = d.xpos[b] + d.xmat[b].reshape(3, 3) @ cfg.pos
         quat = np.empty(4)
         mujoco.mju_mulQuat(quat, d.xquat[b], cfg.quat_wxyz)

@@ -1,0 +1,91 @@
+"""Validation on mujoco.batch threads gives exactly what stepping from Python gives.
+
+The same protocol programs (sim.validate.program) run on one scene from Python
+(``Validator.validate``) and many at once on ``mujoco.batch`` (``Validator.validate_all``); every
+field of every result must be equal — not close — over a fixed set of passing and failing
+grasps, with more grasps than the batch holds (so simulations are refilled), on two threads.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from sim.grasp import Grasp
+from sim.hand.model import Hand
+from sim.hand.reference_grasps import load_reference_grasps
+from sim.validate.config import ValidateConfig
+from sim.validate.result import ValidationResult
+from sim.validate.validator import BATCH_SIMS, Validator
+from sim.world.objects import load_object
+from tests.conftest import needs_menagerie, needs_ycb
+
+pytestmark = [needs_menagerie, needs_ycb]
+OBJ = "005_tomato_soup_can"
+
+
+def _perturbed(hand: Hand, base: Grasp, n: int, seed: int = 0) -> list[Grasp]:
+    """``base`` and n − 1 perturbations of it (palm ±6 mm / ±6°, joints ±0.08 rad): a mix of
+    grasps that hold, slip, lose contact or penetrate."""
+    rng = np.random.default_rng(seed)
+    out = [base]
+    while len(out) < n:
+        rot = Rotation.from_rotvec(rng.normal(0, np.deg2rad(6) / np.sqrt(3), 3))
+        quat = (rot * Rotation.from_quat(base.palm_quat_wxyz, scalar_first=True)).as_quat(
+            scalar_first=True)
+        q = hand.clip(base.joints + rng.uniform(-0.08, 0.08, hand.nq))
+        out.append(Grasp.from_arrays(base.palm_pos + rng.uniform(-0.006, 0.006, 3), quat, q))
+    return out
+
+
+def _fields(r: ValidationResult) -> list[object]:
+    """Every field of a result, arrays as bytes, so equality is exact (NaN == NaN bitwise)."""
+    out: list[object] = []
+    for key, value in sorted(vars(r).items()):
+        if isinstance(value, np.ndarray):
+            out.append((key, value.shape, value.tobytes()))
+        elif isinstance(value, float):
+            out.append((key, np.float64(value).tobytes()))
+        elif key == "phases":
+            out.append((key, [(k, p.passed, np.float64(p.displacement_m).tobytes(),
+                               np.float64(p.rotation_rad).tobytes()) for k, p in value.items()]))
+        else:
+            out.append((key, value))
+    return out
+
+
+@pytest.fixture(scope="module")
+def grasps(shadow: Hand) -> list[Grasp]:
+    base = next(r.grasp for r in load_reference_grasps(shadow) if r.object == OBJ)
+    return _perturbed(shadow, base, BATCH_SIMS + 8)
+
+
+@pytest.mark.parametrize(("protocol", "n", "pinned"), [("lift-drop", None, False),
+                                                        ("lift-drop", 10, True),
+                                                        ("six-dir", 10, False)])
+def test_batched_validation_equals_python_stepping(shadow: Hand, grasps: list[Grasp], protocol: str,
+                                                   n: int | None, pinned: bool) -> None:
+    config = ValidateConfig.load()
+    config = replace(config, common=replace(config.common, pin_while_closing=pinned))
+    grasps = grasps[:n]
+    here = Validator(shadow, load_object(OBJ), config)
+    stepped = [here.validate(g, protocol) for g in grasps]
+    batched = Validator(shadow, load_object(OBJ), config).validate_all(grasps, protocol, nthread=2)
+    assert [r.failure for r in batched] == [r.failure for r in stepped]
+    for k, (a, b) in enumerate(zip(stepped, batched, strict=True)):
+        assert _fields(a) == _fields(b), f"grasp {k}"
+    if n is None:   # the set is a real mix, not all passing or all failing
+        assert 3 <= sum(r.passed for r in stepped) <= len(grasps) - 3, [r.failure for r in stepped]
+
+
+def test_the_comparison_sees_a_one_nanoradian_change(shadow: Hand, grasps: list[Grasp]) -> None:
+    """The exact comparison above can fail: a grasp whose joints differ by 1e-9 rad gives a
+    result that differs in some field."""
+    g = next(g for g, r in zip(grasps, Validator(shadow, load_object(OBJ)).validate_all(grasps[:6]),
+                                strict=False) if r.passed)
+    nudged = Grasp.from_arrays(g.palm_pos, g.palm_quat_wxyz, g.joints + 1e-9)
+    v = Validator(shadow, load_object(OBJ))
+    assert _fields(v.validate(g)) != _fields(v.validate(nudged))
