@@ -89,3 +89,21 @@ def test_the_comparison_sees_a_one_nanoradian_change(shadow: Hand, grasps: list[
     nudged = Grasp.from_arrays(g.palm_pos, g.palm_quat_wxyz, g.joints + 1e-9)
     v = Validator(shadow, load_object(OBJ))
     assert _fields(v.validate(g)) != _fields(v.validate(nudged))
+
+
+def test_warp_backend_says_what_it_needs_or_agrees(shadow: Hand, grasps: list[Grasp]) -> None:
+    """Without MuJoCo Warp (or without a CUDA device) ``backend="warp"`` is one clear error;
+    with both, its verdicts on four grasps agree with the C engine's on at least three."""
+    from sim.validate.warp_runner import WarpUnavailable, import_warp
+
+    v = Validator(shadow, load_object(OBJ))
+    try:
+        import_warp("cuda")
+    except WarpUnavailable as exc:
+        assert "pip install mujoco-warp" in str(exc) or "CUDA device" in str(exc)
+        with pytest.raises(WarpUnavailable, match=r"--backend warp needs"):
+            v.validate_all(grasps[:2], backend="warp")
+        return
+    ref = v.validate_all(grasps[:4])
+    warp = v.validate_all(grasps[:4], backend="warp", nworld=4)
+    assert sum(a.passed == b.passed for a, b in zip(ref, warp, strict=True)) >= 3

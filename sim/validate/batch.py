@@ -77,16 +77,19 @@ def default_workers() -> int:
 def validate_many(hand: str, obj: str, grasps: Sequence[Grasp], protocol: str = "lift-drop", *,
                   workers: int | None = None, config_path: Path | None = None,
                   squeeze_convention: str | None = None,
-                  progress: Callable[[int], None] | None = None) -> list[ValidationResult]:
+                  progress: Callable[[int], None] | None = None,
+                  backend: str = "mujoco") -> list[ValidationResult]:
     """Validate ``grasps`` of hand config ``hand`` on object ``obj`` with ``workers`` processes
     (default: all cores), each stepping its grasps on ``mujoco.batch``
     (:meth:`Validator.validate_all`). ``squeeze_convention`` (dgb) overrides the config's;
-    ``progress(n_done)`` is called as results arrive."""
+    ``progress(n_done)`` is called as results arrive. ``backend="warp"``: lift-drop and
+    six-dir on the GPU with MuJoCo Warp, in this process (``workers`` unused)."""
     workers = workers or default_workers()
     cfg = str(config_path) if config_path else None
-    if workers == 1 or len(grasps) <= 1:
+    if workers == 1 or len(grasps) <= 1 or backend != "mujoco":
         return cached_validator(hand, obj, cfg).validate_all(
-            grasps, protocol, squeeze_convention=squeeze_convention, progress=progress)
+            grasps, protocol, squeeze_convention=squeeze_convention, progress=progress,
+            backend=backend)
     # chunks of a batch's size: each worker's batch is full, progress stays live, and the
     # workers finish close together
     size = max(1, min(BATCH_SIMS, len(grasps) // (workers * 2)))

@@ -21,6 +21,7 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 import mujoco
+import numpy as np
 from mujoco import batch as mjbatch
 
 from sim.grasp import Grasp
@@ -28,7 +29,7 @@ from sim.validate.program import STATE_SPEC, Advance, Program, Request, SetState
 from sim.validate.result import ValidationResult
 from sim.world.scene import Scene
 
-__all__ = ["BatchRunner", "validate_batched"]
+__all__ = ["BatchRunner", "ProgramRunner", "validate_batched"]
 
 
 @dataclass
@@ -41,25 +42,23 @@ class _Slot:
     index: int = -1          # the caller's index of the grasp running here
 
 
-class BatchRunner:
-    """Up to ``nsim`` programs of ``scene``'s model at once on ``nthread`` threads (the
-    caller's included). Programs are started from the state ``scene`` holds (:meth:`load`)."""
+class ProgramRunner:
+    """Up to ``nsim`` programs of ``scene``'s model in flight, stepped together by a backend
+    (a subclass: :class:`BatchRunner`, :class:`sim.validate.warp_runner.WarpRunner`).
 
-    def __init__(self, scene: Scene, nsim: int, nthread: int) -> None:
-        m = scene.model
+    Each simulation has a view (``slots[i].view``, :meth:`Scene.over` of its own MjData) that
+    its program reads; a backend keeps what it steps in step with the views."""
+
+    def __init__(self, scene: Scene, nsim: int) -> None:
         self.scene = scene
-        self.batch = mjbatch.Batch(m, nsim, nthread=nthread, persistent=True)
-        self.slots = [_Slot(scene.over(mujoco.MjData(m))) for _ in range(nsim)]
-        self._gravity = self.batch.expand("opt.gravity")
-        self._state = self.batch.state
-        self._ctrl = self.batch.bind("ctrl")
-        self._mocap = self.batch.bind("mocap_pos")
-        self._xfrc = self.batch.bind("xfrc_applied")
-        self._qpos = self.batch.bind("qpos")
-        self._qvel = self.batch.bind("qvel")
+        self.slots = [_Slot(scene.over(mujoco.MjData(scene.model))) for _ in range(nsim)]
 
     def free(self) -> list[int]:
         return [i for i, s in enumerate(self.slots) if s.program is None]
+
+    @property
+    def busy(self) -> bool:
+        return any(s.program is not None for s in self.slots)
 
     def load(self, sim: int, program: Program, index: int) -> None:
         """Start ``program`` on simulation ``sim`` from the state (and gravity) of
@@ -67,8 +66,7 @@ class BatchRunner:
         scene it was made for."""
         src, slot = self.scene, self.slots[sim]
         mujoco.mj_copyData(slot.view.data, src.model, src.data)
-        mujoco.mj_getState(src.model, src.data, self._state[sim], STATE_SPEC)
-        self._gravity[sim] = src.model.opt.gravity
+        self._loaded(sim)
         slot.program, slot.index = program, index
         self._resume(sim)
 
@@ -83,11 +81,59 @@ class BatchRunner:
                 slot.program = slot.request = None
                 return
             if isinstance(req, SetState):
-                self._state[sim] = req.state
                 mujoco.mj_setState(slot.view.model, slot.view.data, req.state, STATE_SPEC)
+                self._state_set(sim, req.state)
                 continue
             slot.request = req
             return
+
+    def step_pending(self) -> None:
+        """One round: every pending Advance, grouped by length, one backend call per group;
+        then each program of the group runs to its next request."""
+        groups: dict[int, list[int]] = defaultdict(list)
+        for sim, slot in enumerate(self.slots):
+            if isinstance(slot.request, Advance):
+                groups[slot.request.nstep].append(sim)
+        for nstep, ids in sorted(groups.items()):
+            self._advance(nstep, ids, [self.slots[i].request for i in ids])
+            for sim in ids:
+                self._resume(sim)
+
+    # -- what a backend provides
+    def _loaded(self, sim: int) -> None:
+        """Simulation ``sim``'s view now holds a new start state (and the scene's gravity)."""
+        raise NotImplementedError
+
+    def _state_set(self, sim: int, state: np.ndarray) -> None:
+        """A program restored ``state`` (already in its view)."""
+        raise NotImplementedError
+
+    def _advance(self, nstep: int, ids: list[int], reqs: list[Advance]) -> None:
+        """Carry out ``reqs`` (all of ``nstep`` steps) on simulations ``ids``, views refreshed."""
+        raise NotImplementedError
+
+
+class BatchRunner(ProgramRunner):
+    """Programs stepped on ``mujoco.batch`` with ``nthread`` threads (the caller's included)."""
+
+    def __init__(self, scene: Scene, nsim: int, nthread: int) -> None:
+        super().__init__(scene, nsim)
+        self.batch = mjbatch.Batch(scene.model, nsim, nthread=nthread, persistent=True)
+        self._gravity = self.batch.expand("opt.gravity")
+        self._state = self.batch.state
+        self._ctrl = self.batch.bind("ctrl")
+        self._mocap = self.batch.bind("mocap_pos")
+        self._xfrc = self.batch.bind("xfrc_applied")
+        self._qpos = self.batch.bind("qpos")
+        self._qvel = self.batch.bind("qvel")
+
+    def _loaded(self, sim: int) -> None:
+        src = self.scene
+        mujoco.mj_getState(src.model, src.data, self._state[sim], STATE_SPEC)
+        self._gravity[sim] = src.model.opt.gravity
+
+    def _state_set(self, sim: int, state: np.ndarray) -> None:
+        self._state[sim] = state
 
     def _apply(self, sim: int, req: Advance) -> None:
         """The settings an Advance makes before its first step, into the simulation's row."""
@@ -108,19 +154,16 @@ class BatchRunner:
             self.batch.get_data(sim, view.data)
             mujoco.mj_setState(view.model, view.data, self._state[sim], STATE_SPEC)
 
-    def _advance(self, nstep: int, ids: list[int]) -> None:
-        """Carry out the pending Advance of every simulation in ``ids`` (all of ``nstep``)."""
-        reqs = [self.slots[i].request for i in ids]
+    def _advance(self, nstep: int, ids: list[int], reqs: list[Advance]) -> None:
         for sim, req in zip(ids, reqs, strict=True):
             self._apply(sim, req)
-        if nstep > 0:
-            if not any(r.per_step for r in reqs):
-                self.batch.step(ids=ids, nstep=nstep)
-            else:
-                self._step_each(nstep, ids, reqs)
-            self._refresh(ids)
-        for sim in ids:
-            self._resume(sim)
+        if nstep <= 0:
+            return
+        if not any(r.per_step for r in reqs):
+            self.batch.step(ids=ids, nstep=nstep)
+        else:
+            self._step_each(nstep, ids, reqs)
+        self._refresh(ids)
 
     def _step_each(self, nstep: int, ids: list[int], reqs: list[Advance]) -> None:
         """Step one at a time, ramping controls and pinning objects between steps."""
@@ -136,25 +179,12 @@ class BatchRunner:
                 self._qpos[sim, sc.obj_qadr + 3:sc.obj_qadr + 7] = quat
                 self._qvel[sim, sc.obj_dadr:sc.obj_dadr + 6] = 0.0
 
-    def step_pending(self) -> None:
-        """One round: every pending Advance, grouped by length, one batch call per group."""
-        groups: dict[int, list[int]] = defaultdict(list)
-        for sim, slot in enumerate(self.slots):
-            if isinstance(slot.request, Advance):
-                groups[slot.request.nstep].append(sim)
-        for nstep, ids in sorted(groups.items()):
-            self._advance(nstep, ids)
-
-    @property
-    def busy(self) -> bool:
-        return any(s.program is not None for s in self.slots)
-
 
 #: starts one grasp: (grasp, the scene its program is to read) → result so far, program or None
 Starter = Callable[[Grasp, Scene], tuple[ValidationResult, Program | None]]
 
 
-def validate_batched(runner: BatchRunner, grasps: Sequence[Grasp], start: Starter,
+def validate_batched(runner: ProgramRunner, grasps: Sequence[Grasp], start: Starter,
                      progress: Callable[[int], None] | None = None) -> list[ValidationResult]:
     """Validate ``grasps`` on ``runner``, refilling each simulation as its grasp finishes;
     results in input order. ``start`` places a grasp in ``runner.scene`` (the protocol's

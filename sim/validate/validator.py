@@ -28,7 +28,7 @@ from sim.grasp import Grasp
 from sim.hand.model import Hand
 from sim.metrics.gws import gws_metrics
 from sim.transforms import pose_inv, pose_mul, rotate
-from sim.validate.batched import BatchRunner, validate_batched
+from sim.validate.batched import BatchRunner, ProgramRunner, validate_batched
 from sim.validate.config import PROTOCOLS, ValidateConfig
 from sim.validate.dgb import run_dgb
 from sim.validate.lift_drop import Observer, lift_drop
@@ -41,7 +41,10 @@ from sim.world.contacts import Contacts, contacts_between, merge_nearby
 from sim.world.objects import ObjectAsset
 from sim.world.scene import HAND_PREFIX, OBJECT_HOME, PhysicsOptions, Scene
 
-__all__ = ["BATCH_SIMS", "Validator"]
+__all__ = ["BACKENDS", "BATCH_SIMS", "Validator"]
+
+#: engines lift-drop and six-dir can step on: MuJoCo (C, mujoco.batch threads), MuJoCo Warp
+BACKENDS = ("mujoco", "warp")
 
 #: grasps a validator keeps in flight at once on mujoco.batch (lift-drop, six-dir)
 BATCH_SIMS = 16
@@ -56,7 +59,7 @@ class Validator:
         self.config = config or ValidateConfig.load()
         self._scenes: dict[str, Scene] = {}
         self._finger_mask = finger_joint_mask(hand)
-        self._runners: dict[tuple[str, int], BatchRunner] = {}
+        self._runners: dict[tuple[object, ...], ProgramRunner] = {}
 
     def scene(self, protocol: str) -> Scene:
         if protocol not in PROTOCOLS:
@@ -211,13 +214,19 @@ class Validator:
 
     def validate_all(self, grasps: Sequence[Grasp], protocol: str = "lift-drop", *,
                      nthread: int = 1, squeeze_convention: str | None = None,
-                     progress: Callable[[int], None] | None = None) -> list[ValidationResult]:
+                     progress: Callable[[int], None] | None = None,
+                     backend: str = "mujoco", device: str = "cuda",
+                     nworld: int = 1024) -> list[ValidationResult]:
         """Validate ``grasps`` in input order, the results exactly :meth:`validate`'s.
 
         lift-drop and six-dir run up to :data:`BATCH_SIMS` grasps at once on ``mujoco.batch``
         with ``nthread`` threads (:mod:`sim.validate.batched`): no Python between steps, and
         the steps of many grasps in one call. dgb steps from Python, grasp by grasp.
-        ``progress(n_done)`` is called as grasps finish."""
+        ``backend="warp"`` steps lift-drop and six-dir as ``nworld`` worlds of MuJoCo Warp on
+        ``device`` instead (:mod:`sim.validate.warp_runner`; close to, not bit-identical with,
+        the C engine's results). ``progress(n_done)`` is called as grasps finish."""
+        if backend not in BACKENDS:
+            raise ValueError(f"backend {backend!r}: expected one of {BACKENDS}")
         if protocol not in ("lift-drop", "six-dir"):
             out = []
             for g in grasps:
@@ -225,9 +234,14 @@ class Validator:
                 if progress is not None:
                     progress(len(out))
             return out
-        key = (protocol, nthread)
+        key = (protocol, backend, nthread if backend == "mujoco" else (device, nworld))
         if key not in self._runners:
-            self._runners[key] = BatchRunner(self.scene(protocol), BATCH_SIMS, nthread)
+            if backend == "warp":
+                from sim.validate.warp_runner import WarpRunner
+
+                self._runners[key] = WarpRunner(self.scene(protocol), nworld, device)
+            else:
+                self._runners[key] = BatchRunner(self.scene(protocol), BATCH_SIMS, nthread)
         return validate_batched(self._runners[key], grasps,
                                 lambda g, view: self.start(g, protocol, scene=view), progress)
 
