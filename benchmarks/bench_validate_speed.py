@@ -6,9 +6,10 @@ exist). Rows, all on the same grasps:
 
 - ``python loop``: ``Validator.validate`` grasp by grasp in this process (MuJoCo stepped from
   Python, as every protocol ran before sim.validate.batched);
-- ``batch, T threads``: ``Validator.validate_all`` in this process on mujoco.batch;
-- ``validate_many, W processes``: the library default (each worker steps its chunks on a
-  one-thread batch), workers started and their validators built before the clock starts.
+- ``batch, T threads``: the grasps on one ``mujoco.batch`` runner (sim.validate.batched) of
+  ``BATCH_SIMS`` simulations and T threads in this process;
+- ``validate_many, W processes``: the library default (each worker validates its chunks
+  grasp by grasp), workers started and their validators built before the clock starts.
 
 Steps are counted by running each grasp's program once (they are the same in every row), and
 every row's verdicts are compared with the python loop's. Prints one Markdown table.
@@ -30,8 +31,9 @@ from sim.grasp import Grasp
 from sim.hand.config import default_hand_name
 from sim.hand.model import Hand
 from sim.validate.batch import validate_many
+from sim.validate.batched import BatchRunner, validate_batched
 from sim.validate.program import Advance
-from sim.validate.validator import Validator
+from sim.validate.validator import BATCH_SIMS, Validator
 from sim.world.objects import load_object
 
 
@@ -95,7 +97,9 @@ def main() -> None:
     row("python loop, 1 process", len(loop), time.perf_counter() - t0, ref, ref)
     for threads in (1, 2):
         t0 = time.perf_counter()
-        res = v.validate_all(grasps, args.protocol, nthread=threads)
+        runner = BatchRunner(v.scene(args.protocol), BATCH_SIMS, threads)
+        res = validate_batched(runner, grasps,
+                               lambda g, view: v.start(g, args.protocol, scene=view))
         row(f"batch, {threads} thread(s), 1 process", len(grasps), time.perf_counter() - t0,
             [(r.passed, r.failure) for r in res], ref)
     for workers in (1, 2):

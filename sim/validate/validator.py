@@ -219,15 +219,18 @@ class Validator:
                      nworld: int = 1024) -> list[ValidationResult]:
         """Validate ``grasps`` in input order, the results exactly :meth:`validate`'s.
 
-        lift-drop and six-dir run up to :data:`BATCH_SIMS` grasps at once on ``mujoco.batch``
-        with ``nthread`` threads (:mod:`sim.validate.batched`): no Python between steps, and
-        the steps of many grasps in one call. dgb steps from Python, grasp by grasp.
+        With ``nthread`` > 1, lift-drop and six-dir run up to :data:`BATCH_SIMS` grasps at once
+        on ``mujoco.batch`` with that many threads (:mod:`sim.validate.batched`): one process
+        using several cores. With one thread they step grasp by grasp from Python, which
+        measured 12 % faster than a one-thread batch (``benchmarks/bench_validate_speed.py``:
+        MuJoCo's step is 75 % of the time either way, and one MjData stays in cache); the
+        results are the same bit for bit. dgb always steps grasp by grasp.
         ``backend="warp"`` steps lift-drop and six-dir as ``nworld`` worlds of MuJoCo Warp on
         ``device`` instead (:mod:`sim.validate.warp_runner`; close to, not bit-identical with,
         the C engine's results). ``progress(n_done)`` is called as grasps finish."""
         if backend not in BACKENDS:
             raise ValueError(f"backend {backend!r}: expected one of {BACKENDS}")
-        if protocol not in ("lift-drop", "six-dir"):
+        if protocol not in ("lift-drop", "six-dir") or (backend == "mujoco" and nthread == 1):
             out = []
             for g in grasps:
                 out.append(self.validate(g, protocol, squeeze_convention=squeeze_convention))
