@@ -53,7 +53,7 @@ def main() -> None:
     print(f"{args.object}, {args.protocol}, {len(grasps)} grasps, Warp on {args.device}")
     print("| engine | passed | validations/s | verdicts = C | failure reason = C |")
     print("| --- | --- | --- | --- | --- |")
-    print(f"| MuJoCo C (mujoco.batch, 1 thread) | {sum(r.passed for r in ref)} | {c_rate:.2f} | | |")
+    print(f"| MuJoCo C (1 thread) | {sum(r.passed for r in ref)} | {c_rate:.2f} | | |")
     print(f"| MuJoCo Warp ({args.device}, {len(grasps)} worlds) | {sum(r.passed for r in warp)} | "
           f"{w_rate:.2f} | {same}/{len(grasps)} ({100 * same / len(grasps):.0f} %) | "
           f"{same_reason}/{len(grasps)} |")
