@@ -12,7 +12,7 @@ export MUJOCO_GL ?= egl
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	$(BIN)/python -m pip install --quiet -e '.[dev,ray]'
 	touch $(STAMP)
 
 # Offscreen rendering needs an EGL or OSMesa library; install Debian's when we may (root, apt).

@@ -7,9 +7,11 @@ and tables; libraries never print.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import dataclasses
 import logging
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -19,7 +21,9 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from rich.table import Table
 
 if TYPE_CHECKING:
+    from dexaug.pipeline.options import AugmentOptions
     from dexaug.pipeline.summary import DemoSummary
+    from dexaug.scale.units import Unit
 
 from dexaug.commands.argtypes import count, int_at_least, positive
 from dexaug.commands.options import augment_options, budget_arg, generation_args, hand_arg, workers_arg
@@ -139,6 +143,69 @@ def _augment_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--gallery", type=int_at_least(0), default=6,
                    help="grasps rendered in each report (0: no report)")
     generation_args(p)
+    ray_args(p)
+
+
+def ray_args(p: argparse.ArgumentParser) -> None:
+    """``--ray [ADDRESS]``, ``--ray-cpus``, ``--chunk``: where and how units run on Ray."""
+    from dexaug.scale.ray_cluster import LOCAL
+
+    p.add_argument("--ray", nargs="?", const=LOCAL, default=None, metavar="ADDRESS",
+                   help="run on Ray (pip install 'dexaug[ray]'): alone, start a local cluster "
+                   "whose servers listen on loopback (127.0.0.1) only, no dashboard; with ADDRESS "
+                   "(host:port of a running cluster's GCS, ray://host:port or auto), connect "
+                   "there: your choice, and Ray's own token authentication and network setup "
+                   "apply (dexaug must be installed on its nodes). Each demo's FSG is one task "
+                   "with --workers processes (default 1 with --ray), its validation spreads "
+                   "over the cluster in --chunk tasks, and this process writes every result. "
+                   "Same datasets as without --ray for the same --seed and --workers. "
+                   "Default: the local process pool")
+    p.add_argument("--ray-cpus", type=count, default=None, metavar="N",
+                   help="--ray without ADDRESS: worker CPUs of the local cluster (default: all "
+                   "cores)")
+    p.add_argument("--chunk", type=count, default=32, metavar="N",
+                   help="--ray: grasps per validation task (default %(default)s)")
+
+
+def ray_options(args: argparse.Namespace) -> AugmentOptions:
+    """``augment_options`` for this run: with ``--ray``, ``--workers`` is the FSG processes of
+    one task (default 1, so a task holds one CPU), not all cores."""
+    opts = augment_options(args)
+    return dataclasses.replace(opts, workers=args.workers or 1) if args.ray is not None else opts
+
+
+def run_units(units: Sequence[Unit], args: argparse.Namespace, console: Console, bar: Progress,
+              ) -> tuple[list[DemoSummary], int]:
+    """Run ``units`` into ``args.out``: one after another on the local pool, or with ``--ray``
+    on the (already connected) cluster; a line per unit, failures in red. Returns the summaries
+    and the number of units that failed."""
+    from dexaug.scale.ray_jobs import Outcome, run_on_ray
+    from dexaug.scale.units import run_local
+    from sim.errors import DexaugError
+
+    if args.ray is not None:
+        outcomes = run_on_ray(units, args.out, chunk=args.chunk, force=args.force,
+                              progress=stage_ticker(bar))
+    else:
+        outcomes = []
+        overall = bar.add_task("units", total=len(units))
+        for unit in units:
+            try:
+                summary = run_local(unit, args.out, progress=stage_ticker(bar), force=args.force)
+                outcomes.append(Outcome(unit, summary))
+            except DexaugError as exc:
+                outcomes.append(Outcome(unit, error=str(exc)))
+            bar.advance(overall)
+    rows = []
+    for o in outcomes:
+        if o.summary is None:
+            console.print(f"{o.unit.id}: {o.error}", style="red", highlight=False)
+            continue
+        s = o.summary
+        rows.append(s)
+        state = "skipped (done)" if s.skipped else "done"
+        console.print(f"{s.demo_id}: {s.passed}/{s.generated} passed, {state}; report {s.report}")
+    return rows, sum(o.summary is None for o in outcomes)
 
 
 @command("augment", _augment_args)
@@ -150,20 +217,35 @@ def augment_cmd(args: argparse.Namespace, console: Console) -> int:
     output folder gets grasps.h5 (validated grasps, rejected ones in a side table),
     report.html and summary.json. Re-running skips finished demos; --watch DIR augments new
     sessions as they are recorded. A session without a usable grasp, object or hand is
-    reported with the reason and the others go on (exit status 1 if any failed).
+    reported with the reason and the others go on (exit status 1 if any failed). --ray runs
+    the demos on a Ray cluster instead of the local process pool (see dexaug batch for many
+    sessions and objects at once).
     """
     from dexaug.pipeline.run import augment_demo, augment_session
+    from dexaug.scale.ray_cluster import ray_cluster
+    from dexaug.scale.units import gather_units
     from sim.demo import DemoError, load_demo
     from sim.errors import DexaugError
 
     if not args.inputs and not args.watch:
         raise UsageError("give sessions to augment or --watch DIR")
-    opts = augment_options(args)
+    opts = ray_options(args)
     failed = 0
     rows = []
-    with progress_bars(console) as bar:
+    with contextlib.ExitStack() as stack, progress_bars(console) as bar:
+        if args.ray is not None:
+            stack.enter_context(ray_cluster(args.ray, num_cpus=args.ray_cpus))
+
         def one(path: Path) -> None:
             nonlocal failed
+            if args.ray is not None:
+                units, errors = gather_units([path], opts)
+                for text in errors:
+                    console.print(text, style="red", highlight=False)
+                done, bad = run_units(units, args, console, bar)
+                rows.extend(done)
+                failed += len(errors) + bad
+                return
             tick = stage_ticker(bar)
             try:
                 if path.suffix == ".json":
@@ -187,7 +269,7 @@ def augment_cmd(args: argparse.Namespace, console: Console) -> int:
             one(path)
         if args.watch:
             _watch(args.watch, args.poll, one, console)
-    _summary_table(console, rows)
+    summary_table(console, rows)
     return 1 if failed else 0
 
 
@@ -224,7 +306,8 @@ def _watch(folder: Path, poll_s: float, handle: Callable[[Path], None],
         console.print("stopped watching")
 
 
-def _summary_table(console: Console, rows: list[DemoSummary]) -> None:
+def summary_table(console: Console, rows: list[DemoSummary]) -> None:
+    """One row per unit: counts, pass rate, FSG and validation seconds, throughput."""
     if not rows:
         return
     t = Table(title="augmentation")

@@ -14,6 +14,12 @@ run redoes that demo.
 Why per-demo folders and not one growing file: demos are independent units of work (the
 dashboard and ``--watch`` start them one by one), and a failure in one never touches another's
 results. ``augment.dataset.load`` reads any of them; ``merge_datasets`` joins them.
+
+Compute and write are separate steps (:func:`compute_fsg` and validation make a
+:class:`Computed`, plain picklable data; :func:`write_result` makes the files): the Ray scale-out
+(:mod:`dexaug.scale`) computes in tasks that may be retried on another worker, and its driver
+alone writes each folder, once, so a retried task never adds rows. ``augment_demo`` runs both
+steps in this process, as it always has.
 """
 
 from __future__ import annotations
@@ -23,7 +29,7 @@ import logging
 import time
 from collections import Counter
 from collections.abc import Callable
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -46,11 +52,12 @@ from sim.hand.model import Hand
 from sim.io import write_bytes_atomic
 from sim.pools import persistent_pool
 from sim.validate.batch import ScenePenetration, validate_many
+from sim.validate.result import ValidationResult
 from sim.world.objects import ObjectAsset, load_object
 from teleop.record.demos import extract_demos
 
-__all__ = ["augment_demo", "augment_session", "demo_fingers", "demo_table", "generate_grasps",
-           "validate_demo_grasp"]
+__all__ = ["Computed", "augment_demo", "augment_session", "compute_fsg", "demo_fingers", "demo_table",
+           "generate_grasps", "validate_computed", "validate_demo_grasp", "write_result"]
 
 log = logging.getLogger(__name__)
 
@@ -71,6 +78,69 @@ def generate_grasps(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: Works
                     exact_penetration=exact, workers=workers, **kwargs)
 
 
+@dataclass
+class Computed:
+    """What the compute stages made of one unit of work (a demo, or an object on the manual
+    workspace): no file is written and everything is plain data, so a Ray task can return it
+    and the driver alone writes (:func:`write_result`). ``validation`` is None until validated
+    (or when validation is off); ``timings_s`` holds seconds per stage."""
+
+    hand: str
+    object: str
+    joint_names: tuple[str, ...]
+    finger_names: tuple[str, ...]
+    fsg: FsgResult
+    timings_s: dict[str, float]
+    validation: list[ValidationResult] | None = None
+    demo_grasp: dict[str, Any] | None = None
+
+
+def compute_fsg(hand_name: str, object_name: str, demo: Demo | None, opts: AugmentOptions, *,
+                workers: int, progress: Progress | None = None,
+                ) -> tuple[Computed, Hand, ObjectAsset, ObjectCloud]:
+    """Workspace (demo-centred, or the hand's manual one without ``demo``) and FSG with
+    ``workers`` processes (its output depends on that count: worker k uses seed + k). Returns
+    the result and the loaded hand, object and cloud (for a report in the same process)."""
+    tick = progress or (lambda stage, done, total: None)
+    timings: dict[str, float] = {}
+    t0 = time.perf_counter()
+    hand = Hand.load(hand_name)
+    obj = load_object(object_name)
+    cloud = object_cloud(obj)
+    tick("workspace", 0, 1)
+    ws = build_workspace(hand, demo=DemoSeed.from_demo(demo) if demo is not None else None)
+    tick("workspace", 1, 1)
+    timings["workspace"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    tick("fsg", 0, opts.n)
+    res = generate_grasps(hand, cloud, ws, n=opts.n, table=demo_table(demo, opts.table),
+                          finger_names=demo_fingers(demo) if demo is not None else None,
+                          link_penetration=opts.link_penetration, seed=opts.seed,
+                          finger_iteration=opts.finger_iteration,
+                          time_budget_s=opts.time_budget_s, workers=workers,
+                          progress=lambda k: tick("fsg", k, opts.n))
+    tick("fsg", len(res.grasps), opts.n)
+    timings["fsg"] = time.perf_counter() - t0
+    done = Computed(hand.name, obj.name, tuple(hand.joint_names), tuple(hand.finger_names), res,
+                    timings)
+    return done, hand, obj, cloud
+
+
+def validate_computed(c: Computed, opts: AugmentOptions, *, progress: Progress | None = None) -> None:
+    """Validate ``c``'s grasps with ``opts.validate`` on the local pool (``opts.workers``
+    processes) into ``c.validation``, timing it; nothing when validation is off."""
+    tick = progress or (lambda stage, done, total: None)
+    t0 = time.perf_counter()
+    if opts.validate and c.fsg.grasps:
+        total = len(c.fsg.grasps)
+        c.validation = validate_many(c.hand, c.object, [g.grasp for g in c.fsg.grasps],
+                                     opts.validate, workers=opts.workers,
+                                     squeeze_convention=opts.squeeze_convention,
+                                     progress=lambda k: tick("validate", k, total))
+    c.timings_s["validate"] = time.perf_counter() - t0
+
+
 def augment_demo(demo: Demo, out_root: Path | str, opts: AugmentOptions | None = None, *,
                  progress: Progress | None = None, force: bool = False) -> DemoSummary:
     """Augment one demo into ``demo_dir(out_root, demo)`` (module docstring); a folder already
@@ -88,53 +158,41 @@ def augment_demo(demo: Demo, out_root: Path | str, opts: AugmentOptions | None =
     tick = progress or (lambda stage, done, total: None)
     configs = result_configs(demo)   # the inputs as they are now, before any stage reads them
     key = run_key(demo, opts, configs)
-    timings: dict[str, float] = {}
-    t0 = time.perf_counter()
-    hand = Hand.load(demo.hand)
-    obj = load_object(demo.object)
-    cloud = object_cloud(obj)
-    tick("workspace", 0, 1)
-    ws = build_workspace(hand, demo=DemoSeed.from_demo(demo))
-    tick("workspace", 1, 1)
-    timings["workspace"] = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
-    tick("fsg", 0, opts.n)
-    res = generate_grasps(hand, cloud, ws, n=opts.n, table=demo_table(demo, opts.table),
-                   finger_names=demo_fingers(demo),
-                   link_penetration=opts.link_penetration, seed=opts.seed,
-                   finger_iteration=opts.finger_iteration,
-                   time_budget_s=opts.time_budget_s, workers=opts.workers,
-                   progress=lambda k: tick("fsg", k, opts.n))
-    tick("fsg", len(res.grasps), opts.n)
-    timings["fsg"] = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
-    results = None
-    if opts.validate and res.grasps:
-        total = len(res.grasps)
-        results = validate_many(hand.name, obj.name, [g.grasp for g in res.grasps],
-                                opts.validate, workers=opts.workers,
-                                squeeze_convention=opts.squeeze_convention,
-                                progress=lambda k: tick("validate", k, total))
-    timings["validate"] = time.perf_counter() - t0
-    demo_grasp = None
+    c, hand, obj, cloud = compute_fsg(demo.hand, demo.object, demo, opts, workers=opts.workers,
+                                      progress=tick)
+    validate_computed(c, opts, progress=tick)
     if opts.validate:
         t0 = time.perf_counter()
-        demo_grasp = validate_demo_grasp(hand.name, obj.name, demo, opts.validate,
-                                         opts.squeeze_convention)
-        timings["demo_grasp"] = time.perf_counter() - t0
+        c.demo_grasp = validate_demo_grasp(hand.name, obj.name, demo, opts.validate,
+                                           opts.squeeze_convention)
+        c.timings_s["demo_grasp"] = time.perf_counter() - t0
+    return write_result(folder, c, opts, key=key, configs=configs, demo=demo, progress=tick,
+                        assets=(hand, obj, cloud))
 
-    provenance = {"hand": hand.name, "demo_source": str(demo.source), "seed": opts.seed,
+
+def write_result(folder: Path, c: Computed, opts: AugmentOptions, *, key: str,
+                 configs: dict[str, str], demo: Demo | None, unit_id: str | None = None,
+                 source: str | None = None, progress: Progress | None = None,
+                 assets: tuple[Hand, ObjectAsset, ObjectCloud] | None = None) -> DemoSummary:
+    """Write ``c`` into ``folder``: ``grasps.h5``, the report (demos only, with
+    ``opts.gallery`` > 0; ``assets`` saves reloading hand, object and cloud) and
+    ``summary.json`` last, each atomically. The one place results become files: a caller that
+    computed elsewhere (a Ray task) writes each folder once, here. ``unit_id`` and ``source``
+    default to the demo's id and source."""
+    tick = progress or (lambda stage, done, total: None)
+    unit_id = unit_id if unit_id is not None else demo.id if demo is not None else c.object
+    source = source if source is not None else str(demo.source) if demo is not None else ""
+    res, results, timings = c.fsg, c.validation, c.timings_s
+    provenance = {"hand": c.hand, "demo_source": source, "seed": opts.seed,
                   "options": json.dumps(asdict(opts)), "run_key": key, **configs,
                   "protocol": opts.validate or "none", "fsg_stopped": res.stopped}
-    table = dataset.from_fsg(res.grasps, hand.joint_names, hand.finger_names, results,
-                             demo_id=demo.id, attrs=provenance,
+    table = dataset.from_fsg(res.grasps, c.joint_names, c.finger_names, results,
+                             demo_id=demo.id if demo is not None else "", attrs=provenance,
                              split_rejected=results is not None)
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "summary.json").unlink(missing_ok=True)   # not finished until rewritten
     data_path = folder / "grasps.h5"
-    dataset.save(data_path, {obj.name: table})
+    dataset.save(data_path, {c.object: table})
     failures = Counter(str(r.failure) for r in results or [] if not r.passed)
     kept = table
     sim_eps = np.asarray(kept["sim_epsilon"], float)
@@ -147,23 +205,30 @@ def augment_demo(demo: Demo, out_root: Path | str, opts: AugmentOptions | None =
                "sim_epsilon_mean_closed": _mean(closed),
                "displacement_mm_mean": 1e3 * _mean(kept["displacement_m"])}
     summary = DemoSummary(
-        demo_id=demo.id, hand=hand.name, object=obj.name, source=str(demo.source),
+        demo_id=unit_id, hand=c.hand, object=c.object, source=source,
         run_key=key, requested=opts.n, generated=len(res.grasps),
         passed=len(kept) if results is not None else 0, failures=dict(failures),
         fsg_stopped=res.stopped, timings_s=timings, metrics=metrics, dataset=str(data_path),
-        report=None, demo_grasp=demo_grasp)
-    if opts.gallery > 0:
+        report=None, demo_grasp=c.demo_grasp)
+    if opts.gallery > 0 and demo is not None:
         t0 = time.perf_counter()
         tick("report", 0, 1)
+        hand, obj, cloud = assets or _load_assets(c.hand, c.object)
         summary.report = str(write_report(folder, demo, hand, obj, table, summary,
                                           np.asarray(cloud.points), gallery=opts.gallery))
         tick("report", 1, 1)
         timings["report"] = time.perf_counter() - t0
     write_bytes_atomic(folder / "summary.json",
                        (json.dumps(summary.to_json(), indent=1) + "\n").encode())
-    log.info("%s: %d of %d generated grasps passed %s; demo grasp %s (%s)", demo.id,
-             summary.passed, summary.generated, opts.validate, demo_grasp_text(demo_grasp), folder)
+    log.info("%s: %d of %d generated grasps passed %s; demo grasp %s (%s)", unit_id,
+             summary.passed, summary.generated, opts.validate, demo_grasp_text(c.demo_grasp),
+             folder)
     return summary
+
+
+def _load_assets(hand: str, obj: str) -> tuple[Hand, ObjectAsset, ObjectCloud]:
+    asset = load_object(obj)
+    return Hand.load(hand), asset, object_cloud(asset)
 
 
 def validate_demo_grasp(hand: str, obj: str, demo: Demo, protocol: str,
