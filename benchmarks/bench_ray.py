@@ -84,7 +84,8 @@ def main() -> None:
         if failed:
             raise SystemExit(f"Ray units failed: {failed}")
         print(row(f"Ray, {args.cpus} local worker CPUs", wall, [o.summary for o in outcomes]))
-        print(f"Ray datasets equal the 1-process local ones: {same(tables(root / 'local1'), tables(root / 'ray'))}")
+        equal = same(tables(root / "local1"), tables(root / "ray"))
+        print(f"Ray datasets equal the 1-process local ones: {equal}")
 
 
 if __name__ == "__main__":

@@ -7,6 +7,7 @@ Each test runs the real command in its own process (``python -m dexaug``), as a 
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import signal
 import socket
@@ -99,6 +100,22 @@ def test_augment_without_input_is_one_line() -> None:
     proc, _ = _dexaug("augment")
     assert proc.returncode == 2
     _one_line_error(proc, "give sessions to augment or --watch DIR")
+
+
+def test_warp_with_a_protocol_it_cannot_step_is_refused() -> None:
+    proc, _ = _dexaug("generate", "--object", "062_dice", "--backend", "warp", "--validate", "dgb")
+    assert proc.returncode == 2
+    _one_line_error(proc, "--backend warp runs lift-drop and six-dir", "dgb")
+
+
+@pytest.mark.skipif(importlib.util.find_spec("mujoco_warp") is not None,
+                    reason="MuJoCo Warp is installed here: the backend may run")
+def test_a_missing_warp_backend_is_one_line_before_any_work(tmp_path: Path) -> None:
+    out = tmp_path / "grasps.h5"
+    proc, _ = _dexaug("generate", "--object", "062_dice", "--n", "200", "--backend", "warp",
+                      "--out", str(out))
+    _one_line_error(proc, "--backend warp needs MuJoCo Warp", "pip install mujoco-warp")
+    assert "FSG" not in proc.stdout and not out.exists()   # refused before the search
 
 
 def test_error_text_is_printed_as_is_not_as_markup(tmp_path: Path) -> None:

@@ -26,7 +26,14 @@ if TYPE_CHECKING:
     from dexaug.scale.units import Unit
 
 from dexaug.commands.argtypes import count, int_at_least, positive
-from dexaug.commands.options import augment_options, budget_arg, generation_args, hand_arg, workers_arg
+from dexaug.commands.options import (
+    augment_options,
+    backend_of,
+    budget_arg,
+    generation_args,
+    hand_arg,
+    workers_arg,
+)
 from dexaug.commands.registry import command
 from dexaug.commands.workers import stop_workers
 from sim.errors import UsageError
@@ -88,6 +95,7 @@ def generate_cmd(args: argparse.Namespace, console: Console) -> int:
     hand = Hand.load(args.hand)
     obj = load_object(args.object)
     workers = args.workers or default_workers()
+    backend = backend_of(args)
     demo = resolve_demo(args.demo, hand.name) if args.demo else None
     if demo is not None and demo.object != obj.name:
         console.print(f"note: demo {demo.id} grasps {demo.object}, generating for {obj.name}",
@@ -110,11 +118,12 @@ def generate_cmd(args: argparse.Namespace, console: Console) -> int:
             results = validate_many(hand.name, obj.name, [g.grasp for g in res.grasps],
                                     args.validate, workers=workers,
                                     squeeze_convention=args.squeeze_convention,
-                                    progress=lambda k: bar.update(vt, completed=k))
+                                    progress=lambda k: bar.update(vt, completed=k),
+                                    backend=backend)
     table = dataset.from_fsg(res.grasps, hand.joint_names, hand.finger_names, results,
                              demo_id=demo.id if demo else "",
                              attrs={"hand": hand.name, "seed": args.seed,
-                                    "protocol": args.validate},
+                                    "protocol": args.validate, "backend": backend},
                              split_rejected=results is not None)
     dataset.append(args.out, {obj.name: table})
     per = res.elapsed_s / len(res.grasps) if res.grasps else float("nan")

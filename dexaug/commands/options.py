@@ -10,11 +10,12 @@ import argparse
 from typing import TYPE_CHECKING
 
 from dexaug.commands.argtypes import count, positive
+from sim.errors import UsageError
 
 if TYPE_CHECKING:
     from dexaug.pipeline.options import AugmentOptions
 
-__all__ = ["augment_options", "budget_arg", "generation_args", "hand_arg", "workers_arg"]
+__all__ = ["augment_options", "backend_of", "budget_arg", "generation_args", "hand_arg", "workers_arg"]
 
 
 def hand_arg(p: argparse.ArgumentParser, help: str = "hand config name (configs/hands/<hand>/)") -> None:
@@ -45,6 +46,12 @@ def generation_args(p: argparse.ArgumentParser) -> None:
                    help="drop the least important finger when a round yields too few grasps "
                    "(the paper's finger iteration); default: on without a demo, off with one "
                    "(the demo's fingers are kept)")
+    from sim.validate.validator import BACKENDS
+
+    p.add_argument("--backend", choices=BACKENDS, default=BACKENDS[0],
+                   help="what steps lift-drop and six-dir: mujoco (MuJoCo's C engine, CPU "
+                   "processes) or warp (MuJoCo Warp on a CUDA GPU, pip install mujoco-warp; "
+                   "verdicts close to, not identical with, mujoco's); default %(default)s")
     p.add_argument("--seed", type=int, default=0, help="FSG seed (worker k uses seed + k)")
     workers_arg(p)
     budget_arg(p, 120.0)
@@ -80,4 +87,19 @@ def augment_options(args: argparse.Namespace) -> AugmentOptions:
                           seed=args.seed, workers=args.workers or default_workers(),
                           time_budget_s=args.budget, gallery=args.gallery,
                           squeeze_convention=args.squeeze_convention,
-                          finger_iteration=bool(args.finger_iteration))
+                          finger_iteration=bool(args.finger_iteration), backend=backend_of(args))
+
+
+def backend_of(args: argparse.Namespace) -> str:
+    """``--backend``, refused with a protocol it cannot step (only lift-drop and six-dir are
+    programs a batch backend runs; dgb steps grasp by grasp on the C engine), and checked
+    here before any work when it runs in this process (not on a Ray cluster, whose nodes may
+    have the GPU this machine lacks): no FSG run ends in a missing package."""
+    if args.backend != "mujoco" and args.validate not in ("lift-drop", "six-dir"):
+        raise UsageError(f"--backend {args.backend} runs lift-drop and six-dir; --validate "
+                         f"{args.validate} runs on --backend mujoco")
+    if args.backend == "warp" and getattr(args, "ray", None) is None:
+        from sim.validate.warp_runner import import_warp
+
+        import_warp("cuda")
+    return args.backend

@@ -46,6 +46,9 @@ class AugmentOptions:
     #: with a demo, keep its fingers (False) or let FSG drop the least important one on a
     #: poor round (the paper's finger iteration)
     finger_iteration: bool = False
+    #: what steps lift-drop and six-dir: "mujoco" (the C engine on the CPU) or "warp" (MuJoCo
+    #: Warp on a CUDA device: close to, not bit-identical with, the C engine's verdicts)
+    backend: str = "mujoco"
 
 
 #: the configuration files an augmentation's results depend on (besides the hand's own)
@@ -60,15 +63,24 @@ def result_configs(demo: Demo) -> dict[str, str]:
     return {f"config:{p.name}": p.read_text() if p.is_file() else "" for p in paths}
 
 
+def result_options(opts: AugmentOptions) -> dict[str, object]:
+    """The options that change results, as :func:`run_key` hashes them: all but ``workers``
+    and ``gallery``, and ``backend`` only when it is not the default (so results made before
+    the option existed are still found finished)."""
+    options = asdict(opts)
+    options.pop("workers")
+    options.pop("gallery")
+    if options["backend"] == AugmentOptions.backend:
+        options.pop("backend")
+    return options
+
+
 def run_key(demo: Demo, opts: AugmentOptions, configs: dict[str, str] | None = None) -> str:
     """Hash of everything that changes an augmentation's results: the options (not
     ``workers`` or ``gallery``), the demo itself, and the configuration texts
     (:func:`result_configs`, read now unless given). A re-run skips a demo only when this
     matches, so a re-recorded demo or an edited config is redone, not served stale."""
-    options = asdict(opts)
-    options.pop("workers")
-    options.pop("gallery")
-    doc = {"options": options, "demo": demo_to_json(demo),
+    doc = {"options": result_options(opts), "demo": demo_to_json(demo),
            "configs": configs if configs is not None else result_configs(demo)}
     return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()[:16]
 

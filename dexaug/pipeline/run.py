@@ -137,7 +137,8 @@ def validate_computed(c: Computed, opts: AugmentOptions, *, progress: Progress |
         c.validation = validate_many(c.hand, c.object, [g.grasp for g in c.fsg.grasps],
                                      opts.validate, workers=opts.workers,
                                      squeeze_convention=opts.squeeze_convention,
-                                     progress=lambda k: tick("validate", k, total))
+                                     progress=lambda k: tick("validate", k, total),
+                                     backend=opts.backend)
     c.timings_s["validate"] = time.perf_counter() - t0
 
 

@@ -62,11 +62,11 @@ def fsg_task(unit: Unit) -> Computed:
 
 
 def validate_chunk(hand: str, obj: str, grasps: Sequence[Grasp], protocol: str,
-                   squeeze_convention: str | None) -> list[ValidationResult]:
+                   squeeze_convention: str | None, backend: str = "mujoco") -> list[ValidationResult]:
     """Ray task (``ray::validate_chunk``): ``grasps`` validated in order in this worker (its
-    validator is cached across chunks of the same hand and object)."""
+    validator is cached across chunks of the same hand and object) on ``backend``."""
     return validate_many(hand, obj, list(grasps), protocol, workers=1,
-                         squeeze_convention=squeeze_convention)
+                         squeeze_convention=squeeze_convention, backend=backend)
 
 
 @dataclass
@@ -169,8 +169,10 @@ def run_on_ray(units: Sequence[Unit], out_root: Path | str, *, chunk: int = DEFA
                 grasps = [g.grasp for g in value.fsg.grasps] if opts.validate else []
                 st.t_validate = time.perf_counter()
                 for j, start in enumerate(range(0, len(grasps), chunk)):
-                    r = val_remote.remote(value.hand, value.object, grasps[start:start + chunk],
-                                          opts.validate, opts.squeeze_convention)
+                    # a Warp chunk runs where Ray has a GPU to give it
+                    task = val_remote.options(num_gpus=1 if opts.backend == "warp" else 0)
+                    r = task.remote(value.hand, value.object, grasps[start:start + chunk],
+                                    opts.validate, opts.squeeze_convention, opts.backend)
                     pending[r] = (i, j)
                     st.refs.add(r)
                     st.chunks += 1

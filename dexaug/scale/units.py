@@ -16,7 +16,7 @@ import json
 import logging
 import re
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from dexaug.pipeline.options import (
@@ -25,6 +25,7 @@ from dexaug.pipeline.options import (
     Progress,
     demo_dir,
     result_configs,
+    result_options,
     run_key,
 )
 from dexaug.pipeline.run import Computed, augment_demo, compute_fsg, validate_computed, write_result
@@ -73,10 +74,8 @@ class Unit:
         """:func:`run_key` of a demo; for an object the same hash over the object and hand."""
         if self.demo is not None:
             return run_key(self.demo, self.opts, configs)
-        options = asdict(self.opts)
-        options.pop("workers")
-        options.pop("gallery")
-        doc = {"options": options, "object": self.object, "hand": self.hand, "configs": configs}
+        doc = {"options": result_options(self.opts), "object": self.object, "hand": self.hand,
+               "configs": configs}
         return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()[:16]
 
     def finished(self, out_root: Path | str) -> DemoSummary | None:

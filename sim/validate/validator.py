@@ -230,6 +230,8 @@ class Validator:
         the C engine's results). ``progress(n_done)`` is called as grasps finish."""
         if backend not in BACKENDS:
             raise ValueError(f"backend {backend!r}: expected one of {BACKENDS}")
+        if backend != "mujoco" and protocol not in ("lift-drop", "six-dir"):
+            raise ValueError(f"backend {backend!r} runs lift-drop and six-dir, not {protocol!r}")
         if protocol not in ("lift-drop", "six-dir") or (backend == "mujoco" and nthread == 1):
             out = []
             for g in grasps:
