@@ -7,6 +7,7 @@ line. Skipped where Ray is not installed (``pip install 'dexaug[ray]'``; ``make 
 
 from __future__ import annotations
 
+import builtins
 import os
 import signal
 import socket
@@ -42,9 +43,12 @@ pytestmark = [needs_ycb, pytest.mark.timeout(600)]
 
 @pytest.fixture(scope="module")
 def cluster() -> Iterator[object]:
-    """One local cluster for the module, started as ``--ray`` starts it (two worker CPUs)."""
+    """One local cluster for the module, started as ``--ray`` starts it (two worker CPUs);
+    afterwards the process's ``print`` is its own again (Ray's driver replaces it)."""
+    before = builtins.print
     with ray_cluster(num_cpus=2) as r:
         yield r
+    assert builtins.print is before, builtins.print
 
 
 def _units() -> list[Unit]:

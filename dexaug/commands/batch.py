@@ -9,9 +9,9 @@ from pathlib import Path
 from rich.console import Console
 
 from dexaug.commands.argtypes import int_at_least
-from dexaug.commands.augment import progress_bars, ray_args, ray_options, run_units, summary_table
 from dexaug.commands.options import generation_args, hand_arg
 from dexaug.commands.registry import command
+from dexaug.commands.running import progress_bars, ray_args, ray_options, run_units, summary_table
 from sim.errors import UsageError
 
 

@@ -70,7 +70,7 @@ def demo(args: argparse.Namespace, console: Console) -> int:
     """
     import tempfile
 
-    from dexaug.commands.augment import progress_bars, stage_ticker
+    from dexaug.commands.running import progress_bars, stage_ticker
     from dexaug.pipeline.options import AugmentOptions
     from dexaug.pipeline.run import augment_session
     from sim.errors import DexaugError

@@ -15,6 +15,7 @@ the GCS port is probed with a plain TCP connect first.
 
 from __future__ import annotations
 
+import builtins
 import contextlib
 import logging
 import os
@@ -112,19 +113,25 @@ def ray_cluster(address: str | None = LOCAL, *, num_cpus: int | None = None) -> 
     if ray.is_initialized():
         yield ray
         return
+    # Ray's driver swaps the process's print for its progress-bar-safe one on first use and
+    # never puts it back; this process's print is not Ray's to keep
+    saved_print = builtins.print
     try:
-        if address in (None, LOCAL):
-            _start_local(ray, num_cpus)
-        else:
-            _probe(address)
-            ray.init(address=address, log_to_driver=False, logging_level=logging.ERROR,
-                     configure_logging=False)
-    except (ConnectionError, RuntimeError, ValueError) as exc:
-        raise ScaleError(f"cannot start or reach the Ray cluster {address or LOCAL}: "
-                         f"{' '.join(str(exc).split())}") from None
-    log.info("Ray cluster %s: %s CPUs", ray.get_runtime_context().gcs_address,
-             ray.cluster_resources().get("CPU", 0))
-    try:
-        yield ray
+        try:
+            if address in (None, LOCAL):
+                _start_local(ray, num_cpus)
+            else:
+                _probe(address)
+                ray.init(address=address, log_to_driver=False, logging_level=logging.ERROR,
+                         configure_logging=False)
+        except (ConnectionError, RuntimeError, ValueError) as exc:
+            raise ScaleError(f"cannot start or reach the Ray cluster {address or LOCAL}: "
+                             f"{' '.join(str(exc).split())}") from None
+        log.info("Ray cluster %s: %s CPUs", ray.get_runtime_context().gcs_address,
+                 ray.cluster_resources().get("CPU", 0))
+        try:
+            yield ray
+        finally:
+            ray.shutdown()
     finally:
-        ray.shutdown()
+        builtins.print = saved_print
