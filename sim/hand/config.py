@@ -66,6 +66,17 @@ class PalmConfig:
 
 
 @dataclass(frozen=True)
+class Mount:
+    """``[mount]``: where the hand sits on an arm. The pose (``pos`` metres, ``quat_wxyz``) of
+    the hand model's base frame (the frame ``Hand.body_poses`` reports in) in a generic flange
+    frame whose +z is the tool axis pointing out of the arm, so one hand config fits any arm
+    whose flange site follows that convention (:mod:`sim.arm.scene`)."""
+
+    pos: np.ndarray
+    quat_wxyz: np.ndarray
+
+
+@dataclass(frozen=True)
 class HandConfig:
     name: str
     file: Path
@@ -82,6 +93,8 @@ class HandConfig:
     #: bridge's own (None: the bridge's); a hand whose light links go unstable at the bridge's
     #: scale names a lower one here
     teleop_kp_scale: float | None = None
+    #: ``[mount]``: the hand's pose on an arm's flange (None: the hand has no arm mount)
+    mount: Mount | None = None
 
     def finger(self, name: str) -> FingerConfig:
         for f in self.fingers:
@@ -97,6 +110,23 @@ def _unit(sec: Section, key: str) -> np.ndarray:
     if n < 1e-9:
         raise sec.error(key, "expected a non-zero 3-vector")
     return v / n
+
+
+def _unit_quat(sec: Section, key: str, default: list[float] | None = None) -> np.ndarray:
+    quat = np.array(sec.floats(key, 4, default) if default is not None else sec.floats(key, 4))
+    if abs(np.linalg.norm(quat) - 1.0) > 1e-6:
+        raise sec.error(key, f"expected a unit quaternion (w, x, y, z), got norm {np.linalg.norm(quat)}")
+    return quat / np.linalg.norm(quat)
+
+
+def _mount(root: Section) -> Mount | None:
+    """The optional ``[mount]`` table; both keys are required once the table is there (a
+    half-given mount would silently put the hand at the flange origin)."""
+    if "mount" not in root:
+        return None
+    sec = root.section("mount")
+    sec.reject_unknown({"pos", "quat_wxyz"})
+    return Mount(pos=np.array(sec.floats("pos", 3)), quat_wxyz=_unit_quat(sec, "quat_wxyz"))
 
 
 def _finger(sec: Section) -> FingerConfig:
@@ -184,7 +214,7 @@ def load_hand_config(name_or_path: str | Path) -> HandConfig:
         known = hand_names()
         raise ConfigError(f"unknown hand {name_or_path!r}: no {path}; known hands: {known}")
     root = load_toml(path)
-    root.reject_unknown({"model", "palm", "fingers", "grasp", "geometry", "teleop"})
+    root.reject_unknown({"model", "palm", "fingers", "grasp", "geometry", "teleop", "mount"})
     teleop = root.section("teleop", {})
     teleop.reject_unknown({"servo_kp_scale"})
     teleop_kp = (teleop.float("servo_kp_scale", min=0.1, max=100.0)
@@ -204,9 +234,7 @@ def load_hand_config(name_or_path: str | Path) -> HandConfig:
                           "or 'path' (an MJCF file, relative to this config)")
     palm = root.section("palm")
     palm.reject_unknown({"body", "pos", "quat_wxyz", "box_center", "box_half_extents"})
-    quat = np.array(palm.floats("quat_wxyz", 4, [1.0, 0.0, 0.0, 0.0]))
-    if abs(np.linalg.norm(quat) - 1.0) > 1e-6:
-        raise palm.error("quat_wxyz", f"expected a unit quaternion, got norm {np.linalg.norm(quat)}")
+    quat = _unit_quat(palm, "quat_wxyz", [1.0, 0.0, 0.0, 0.0])
     half = np.array(palm.floats("box_half_extents", 3))
     if (half <= 0).any():
         raise palm.error("box_half_extents", "expected three positive half extents (metres)")
@@ -228,10 +256,11 @@ def load_hand_config(name_or_path: str | Path) -> HandConfig:
         model_path=(path.parent / model_path).resolve() if model_path else None,
         root_body=model.str("root_body", None), **sizes,
         palm=PalmConfig(body=palm.str("body"), pos=np.array(palm.floats("pos", 3, [0.0] * 3)),
-                        quat_wxyz=quat / np.linalg.norm(quat),
+                        quat_wxyz=quat,
                         box_center=np.array(palm.floats("box_center", 3, [0.0] * 3)),
                         box_half_extents=half),
         fingers=fingers,
         postures=postures,
         teleop_kp_scale=teleop_kp,
+        mount=_mount(root),
     )
