@@ -69,12 +69,13 @@ class ArmGraspResult:
 def evaluate_on_arm(arm: ArmConfig, hand: Hand, obj: ObjectAsset, grasps: Sequence[Grasp], *,
                     placements: int, seed: int = 0, config: ValidateConfig | None = None,
                     approach: ApproachSettings | None = None, timing: ArmTiming | None = None,
-                    area_margin_m: float = 0.15,
+                    area_margin_m: float = 0.15, rest_index: int | None = None,
                     progress: Callable[[int, int], None] | None = None,
                     ) -> tuple[list[Placement], list[ArmGraspResult]]:
     """Evaluate ``grasps`` of ``hand`` on ``obj`` carried by ``arm`` at ``placements`` seeded
     placements on the table (its top minus ``area_margin_m`` at each edge); results in
-    placement-major order. ``progress(done, total)`` counts (placement, grasp) pairs."""
+    placement-major order; ``rest_index`` places the object only in that resting pose.
+    ``progress(done, total)`` counts (placement, grasp) pairs."""
     cfg = config or ValidateConfig.load()
     validator = Validator(hand, obj, cfg)
     stages = [validator.stages(g) for g in grasps]
@@ -84,7 +85,7 @@ def evaluate_on_arm(arm: ArmConfig, hand: Hand, obj: ObjectAsset, grasps: Sequen
     places = sample_placements(obj, resting_poses(obj), placements, seed=seed,
                                area_x_m=(cx - hx + area_margin_m, cx + hx - area_margin_m),
                                area_y_m=(cy - hy + area_margin_m, cy + hy - area_margin_m),
-                               top_z_m=table.top_z_m)
+                               top_z_m=table.top_z_m, rest_index=rest_index)
     limits = {"max_displacement_m": cfg.lift_drop.max_displacement_m,
               "max_rotation_rad": cfg.lift_drop.max_rotation_rad}
     out: list[ArmGraspResult] = []

@@ -49,16 +49,18 @@ class Placement:
 
 def sample_placements(obj: ObjectAsset, poses: RestPoses, n: int, *, seed: int,
                       area_x_m: tuple[float, float], area_y_m: tuple[float, float],
-                      top_z_m: float) -> list[Placement]:
-    """``n`` seeded placements of ``obj``: a resting pose drawn by its share, a yaw uniform in
-    [0°, 360°) and a position uniform in the area (world x and y ranges, metres) on the table
-    top at height ``top_z_m``."""
+                      top_z_m: float, rest_index: int | None = None) -> list[Placement]:
+    """``n`` seeded placements of ``obj``: a resting pose drawn by its share (always
+    ``rest_index`` when given), a yaw uniform in [0°, 360°) and a position uniform in the area
+    (world x and y ranges, metres) on the table top at height ``top_z_m``."""
     if n < 1:
         raise ValueError(f"placements: expected n >= 1, got {n}")
     if not len(poses):
         raise ValueError(f"{obj.name}: no resting pose to place it in")
     rng = np.random.default_rng(seed)
     share = np.maximum([p.share for p in poses.poses], _MIN_SHARE)
+    if rest_index is not None:
+        share = np.eye(len(share))[poses.check_index(rest_index, "rest_index")]
     out = []
     for i in range(n):
         k = int(rng.choice(len(share), p=share / share.sum()))
