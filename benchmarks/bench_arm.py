@@ -26,11 +26,13 @@ from augment import dataset
 from dexaug.pipeline.options import AugmentOptions
 from dexaug.pipeline.run import augment_demo
 from sim.arm.config import load_arm_config
-from sim.arm.evaluate import evaluate_on_arm
+from sim.arm.evaluate import ArmGraspResult, evaluate_on_arm
+from sim.arm.scene import ArmScene
 from sim.demo import load_demo
 from sim.grasp import Grasp
 from sim.hand.model import Hand
 from sim.world.objects import load_object
+from sim.world.render import render_scene, save_png
 from sim.world.resting import resting_poses
 
 DEMOS = Path(__file__).resolve().parents[1] / "recordings" / "demos"
@@ -40,6 +42,18 @@ def pct(k: int, n: int) -> str:
     return f"{100 * k / n:.1f}" if n else "–"
 
 
+def render_result(scene: ArmScene, result: ArmGraspResult, path: Path) -> None:
+    """The scene at the end of ``result``'s simulation (object lifted in the hand)."""
+    import mujoco
+
+    d = mujoco.MjData(scene.model)
+    d.qpos[:] = result.final_qpos
+    mujoco.mj_forward(scene.model, d)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    save_png(path, render_scene(scene.model, d, lookat=d.qpos[scene.obj_qadr:scene.obj_qadr + 3],
+                                distance_m=0.8, azimuth_deg=200.0, elevation_deg=-12.0))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     parser.add_argument("--objects", nargs="+",
@@ -47,6 +61,8 @@ def main() -> None:
     parser.add_argument("--n", type=int, default=50)
     parser.add_argument("--placements", type=int, default=20)
     parser.add_argument("--arms", nargs="+", default=["ur5e", "kuka_iiwa_14"])
+    parser.add_argument("--images", type=Path, help="write the first held grasp of each upright "
+                        "row as <arm>_<object>.png here (the paper's Fig. 12)")
     args = parser.parse_args()
     print("| arm | object | grasps | pairs | table-clear % | reachable % | collision-free % | "
           "hold % | failures | s / planned grasp | s / pair |\n" + "| --- " * 11 + "|")
@@ -81,6 +97,9 @@ def main() -> None:
                     continue
                 _, up = evaluate_on_arm(load_arm_config(arm), hand, obj, grasps,
                                         placements=args.placements, seed=0, rest_index=upright)
+                if args.images and (held_one := next((r for r in up if r.passed), None)):
+                    render_result(ArmScene(load_arm_config(arm), hand, obj), held_one,
+                                  args.images / f"{arm}_{name}.png")
                 f_up = Counter(r.failure for r in up if r.failure)
                 upright_rows.append(
                     f"| {arm} | {name} | {len(up)} | {pct(len(up) - f_up['table'], len(up))} | "

@@ -8,9 +8,11 @@ fields as columns: ``grasp`` (row in the input table), ``placement``, ``object_p
 ``object_quat_wxyz`` (the settled pose, world, m), ``passed``, ``failure`` and ``detail``
 (text), ``arm_q_rad`` (the arm at the grasp; NaN when not planned), ``hand_q_rad`` (the grasp's
 joints), ``times_s`` (K,) and ``trajectory_rad`` (K, n_arm) (the commanded piecewise-linear
-arm trajectory, NaN-padded), ``ik_pos_err_m``, ``ik_rot_err_rad``, ``displacement_m``,
-``rotation_rad``, ``lifted_m``, ``plan_s``, ``sim_s``; attributes: arm, hand, object,
-placements, seed, input file, package versions, and the joint names of arm and hand.
+arm trajectory, NaN-padded), ``final_qpos`` (the whole scene's qpos — arm, hand, object —
+at the end of the simulation, in the composed model's order), ``ik_pos_err_m``,
+``ik_rot_err_rad``, ``displacement_m``, ``rotation_rad``, ``lifted_m``, ``plan_s``, ``sim_s``;
+attributes: arm, hand, object, placements, seed, input file, package versions, and the joint
+names of arm and hand.
 """
 
 from __future__ import annotations
@@ -62,11 +64,14 @@ def _columns(results: list[ArmGraspResult], grasps: list[Grasp], n_arm: int) -> 
     times = np.full((len(results), k), np.nan)
     traj = np.full((len(results), k, n_arm), np.nan)
     arm_q = np.full((len(results), n_arm), np.nan)
+    nq = max((len(r.final_qpos) for r in results if r.final_qpos is not None), default=1)
+    final = np.full((len(results), nq), np.nan)
     for j, r in enumerate(results):
         if r.times_s is not None:
             times[j, :len(r.times_s)] = r.times_s
             traj[j, :len(r.times_s)] = r.trajectory_rad
             arm_q[j] = r.arm_q_rad
+            final[j] = r.final_qpos
     scalar = ("ik_pos_err_m", "ik_rot_err_rad", "displacement_m", "rotation_rad", "lifted_m",
               "plan_s", "sim_s")
     cols = {"grasp": np.array([r.grasp for r in results]),
@@ -78,7 +83,7 @@ def _columns(results: list[ArmGraspResult], grasps: list[Grasp], n_arm: int) -> 
             "detail": np.array([r.detail.encode() for r in results], dtype=h5py.string_dtype()),
             "arm_q_rad": arm_q,
             "hand_q_rad": np.array([grasps[r.grasp].joints for r in results]).reshape(len(results), -1),
-            "times_s": times, "trajectory_rad": traj}
+            "times_s": times, "trajectory_rad": traj, "final_qpos": final}
     cols.update({c: np.array([getattr(r, c) for r in results], float) for c in scalar})
     return cols
 

@@ -41,6 +41,7 @@ class ArmGraspResult:
     pose ``object_pos`` / ``object_quat_wxyz``), ``failure`` (module docstring) and ``detail``;
     for planned grasps the whole-body configuration at the grasp (``arm_q_rad`` and the
     grasp's hand joints), the commanded trajectory (``times_s``, ``trajectory_rad`` (K, n_arm)),
+    the scene's qpos at the end of the simulation (``final_qpos``: arm, hand and object),
     the IK errors at the grasp, the simulated pose change (m, rad) and rise (m); seconds spent
     planning and simulating."""
 
@@ -53,6 +54,7 @@ class ArmGraspResult:
     arm_q_rad: np.ndarray | None = None
     times_s: np.ndarray | None = None
     trajectory_rad: np.ndarray | None = None
+    final_qpos: np.ndarray | None = None
     ik_pos_err_m: float = float("nan")
     ik_rot_err_rad: float = float("nan")
     displacement_m: float = float("nan")
@@ -125,6 +127,7 @@ def _plan_and_simulate(scene: ArmScene, settled, palm_pos, palm_quat, grasp: Gra
     return ArmGraspResult(
         **base, failure=sim.failure, detail="" if sim.passed else _sim_detail(sim),
         arm_q_rad=plan.approach[-1], times_s=sim.times_s, trajectory_rad=sim.arm_q_rad,
+        final_qpos=sim.final_qpos,
         ik_pos_err_m=at_grasp.pos_err_m, ik_rot_err_rad=at_grasp.rot_err_rad,
         displacement_m=sim.displacement_m, rotation_rad=sim.rotation_rad, lifted_m=sim.lifted_m,
         plan_s=plan_s, sim_s=time.perf_counter() - t0)

@@ -46,7 +46,8 @@ class ArmOutcome:
     """What the simulation gave: ``passed``, ``failure`` (None, ``pushed``, ``dropped``,
     ``slipped``), the object's pose change in frame_palm over the lift and hold
     (``displacement_m``, ``rotation_rad``), how far it rose (``lifted_m``), and the commanded
-    arm trajectory (``times_s`` (K,), ``arm_q_rad`` (K, n_arm), piecewise linear)."""
+    arm trajectory (``times_s`` (K,), ``arm_q_rad`` (K, n_arm), piecewise linear) and the
+    scene's whole qpos when the simulation ended (``final_qpos``)."""
 
     passed: bool
     failure: str | None
@@ -55,6 +56,7 @@ class ArmOutcome:
     lifted_m: float
     times_s: np.ndarray
     arm_q_rad: np.ndarray
+    final_qpos: np.ndarray
 
 
 def arm_servo_ids(scene: ArmScene) -> np.ndarray:
@@ -146,7 +148,7 @@ def simulate_plan(scene: ArmScene, settled: mujoco.MjData, plan: ArmPlan, pregra
             pos, _ = _object_pose(scene, d)
             if np.linalg.norm(pos - start_pos) > max_displacement_m:
                 return ArmOutcome(False, "pushed", float(np.linalg.norm(pos - start_pos)), 0.0, 0.0,
-                                  times, keys)
+                                  times, keys, d.qpos.copy())
             ref = _in_palm(scene, d)
     pos, _ = _object_pose(scene, d)
     lifted = float(pos[2] - start_pos[2])
@@ -155,7 +157,7 @@ def simulate_plan(scene: ArmScene, settled: mujoco.MjData, plan: ArmPlan, pregra
     rot = float(quat_angle(rel_quat, ref[1]))
     failure = ("dropped" if lifted < 0.5 * _lift_height(scene, plan)
                else "slipped" if disp > max_displacement_m or rot > max_rotation_rad else None)
-    return ArmOutcome(failure is None, failure, disp, rot, lifted, times, keys)
+    return ArmOutcome(failure is None, failure, disp, rot, lifted, times, keys, d.qpos.copy())
 
 
 def _lift_height(scene: ArmScene, plan: ArmPlan) -> float:
