@@ -190,7 +190,7 @@ class Catalog:
         options and today's configs (``earlier``: False), or an earlier one made under others
         (``make demo``'s, a CLI run with another ``--n``: ``earlier`` True, and augmenting again
         replaces it)."""
-        summary = stored(demo_dir(self.out_root, entry.demo), entry.demo)
+        summary = stored(demo_dir(self.out_root, entry.demo), entry.demo.id)
         if summary is None:
             return None
         return {**result_view({**summary.to_json(), "skipped": True}, self.out_root),

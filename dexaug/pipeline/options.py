@@ -55,11 +55,12 @@ class AugmentOptions:
 RESULT_CONFIGS = (AUGMENT_TOML, VALIDATE_TOML)
 
 
-def result_configs(demo: Demo) -> dict[str, str]:
+def result_configs(demo: Demo | str) -> dict[str, str]:
     """``"config:<file name>"`` → text of each configuration file the stages read for ``demo``
-    (AutoWS and FSG parameters, the validator's, the hand's; "" when absent): read once per
-    run, hashed into :func:`run_key` and stored in the dataset as provenance."""
-    paths = (*RESULT_CONFIGS, hand_config_path(demo.hand))
+    (or for a run of hand ``demo`` without one: AutoWS and FSG parameters, the validator's, the
+    hand's; "" when absent): read once per run, hashed into :func:`run_key` and stored in the
+    dataset as provenance."""
+    paths = (*RESULT_CONFIGS, hand_config_path(demo if isinstance(demo, str) else demo.hand))
     return {f"config:{p.name}": p.read_text() if p.is_file() else "" for p in paths}
 
 

@@ -88,9 +88,10 @@ def demo_grasp_text(verdict: dict[str, Any] | None) -> str:
     return f"{head} — {verdict['protocol']}{drift}"
 
 
-def stored(folder: Path | str, demo: Demo) -> DemoSummary | None:
-    """``folder``'s summary of ``demo`` whose dataset still exists, under whatever options and
-    configs it was made (compare its ``run_key`` with :func:`run_key`), or None."""
+def stored(folder: Path | str, unit_id: str) -> DemoSummary | None:
+    """``folder``'s summary of the demo (or object unit) ``unit_id`` whose dataset still exists,
+    under whatever options and configs it was made (compare its ``run_key`` with
+    :func:`run_key`), or None."""
     path = Path(folder) / "summary.json"
     if not path.is_file():
         return None
@@ -100,7 +101,7 @@ def stored(folder: Path | str, demo: Demo) -> DemoSummary | None:
     except (OSError, ValueError, TypeError):
         log.warning("%s is unreadable; redoing that demo", path)
         return None
-    if summary.demo_id != demo.id or not Path(summary.dataset).is_file():
+    if summary.demo_id != unit_id or not Path(summary.dataset).is_file():
         return None
     summary.skipped = True
     return summary
@@ -110,5 +111,5 @@ def finished(folder: Path | str, demo: Demo, opts: AugmentOptions) -> DemoSummar
     """The summary of ``folder`` when it holds ``demo`` finished under ``opts`` and today's
     configs (:func:`run_key`; what ``augment_demo`` would skip), else None: lets a caller (the
     dashboard) show results without re-running."""
-    summary = stored(folder, demo)
+    summary = stored(folder, demo.id)
     return summary if summary is not None and summary.run_key == run_key(demo, opts) else None

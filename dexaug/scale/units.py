@@ -20,7 +20,6 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from dexaug.pipeline.options import (
-    RESULT_CONFIGS,
     AugmentOptions,
     Progress,
     demo_dir,
@@ -29,10 +28,9 @@ from dexaug.pipeline.options import (
     run_key,
 )
 from dexaug.pipeline.run import Computed, augment_demo, compute_fsg, validate_computed, write_result
-from dexaug.pipeline.summary import DemoSummary, finished
+from dexaug.pipeline.summary import DemoSummary, finished, stored
 from sim.demo import Demo, DemoError, load_demo
 from sim.errors import DexaugError
-from sim.hand.config import hand_config_path
 from teleop.record.demos import extract_demos
 
 __all__ = ["Unit", "demo_unit", "gather_units", "object_unit", "run_local"]
@@ -65,10 +63,7 @@ class Unit:
 
     def configs(self) -> dict[str, str]:
         """The configuration texts the results depend on, read now (:func:`result_configs`)."""
-        if self.demo is not None:
-            return result_configs(self.demo)
-        paths = (*RESULT_CONFIGS, hand_config_path(self.hand))
-        return {f"config:{p.name}": p.read_text() if p.is_file() else "" for p in paths}
+        return result_configs(self.demo if self.demo is not None else self.hand)
 
     def key(self, configs: dict[str, str]) -> str:
         """:func:`run_key` of a demo; for an object the same hash over the object and hand."""
@@ -84,16 +79,8 @@ class Unit:
         folder = self.folder(out_root)
         if self.demo is not None:
             return finished(folder, self.demo, self.opts)
-        path = folder / "summary.json"
-        try:
-            summary = DemoSummary(**json.loads(path.read_text()))
-        except (OSError, ValueError, TypeError):
-            return None
-        if (summary.demo_id != self.id or not Path(summary.dataset).is_file()
-                or summary.run_key != self.key(self.configs())):
-            return None
-        summary.skipped = True
-        return summary
+        summary = stored(folder, self.id)
+        return summary if summary is not None and summary.run_key == self.key(self.configs()) else None
 
     def write(self, out_root: Path | str, computed: Computed, key: str, configs: dict[str, str],
               progress: Progress | None = None) -> DemoSummary:

@@ -17,17 +17,20 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
+import mujoco
 import numpy as np
 
 from sim.arm.config import ArmConfig
 from sim.arm.placement import Placement, palm_targets, sample_placements, table_clear
 from sim.arm.plan import ApproachSettings, plan_grasp
 from sim.arm.scene import ArmScene
-from sim.arm.simulate import ArmTiming, settle_object, simulate_plan
+from sim.arm.simulate import ArmOutcome, ArmTiming, settle_object, simulate_plan
 from sim.grasp import Grasp
 from sim.hand.model import Hand
 from sim.validate.config import ValidateConfig
+from sim.validate.stages import GraspStages
 from sim.validate.validator import Validator
 from sim.world.objects import ObjectAsset
 from sim.world.resting import resting_poses
@@ -111,9 +114,11 @@ def evaluate_on_arm(arm: ArmConfig, hand: Hand, obj: ObjectAsset, grasps: Sequen
     return places, out
 
 
-def _plan_and_simulate(scene: ArmScene, settled, palm_pos, palm_quat, grasp: Grasp, stage,
-                       obj_q: np.ndarray, base: dict, approach: ApproachSettings | None,
+def _plan_and_simulate(scene: ArmScene, settled: mujoco.MjData, palm_pos: np.ndarray,
+                       palm_quat: np.ndarray, grasp: Grasp, stage: GraspStages, obj_q: np.ndarray,
+                       base: dict[str, Any], approach: ApproachSettings | None,
                        timing: ArmTiming | None, limits: dict[str, float]) -> ArmGraspResult:
+    """Plan one grasp and, when planned, simulate it; the result either way."""
     t0 = time.perf_counter()
     plan = plan_grasp(scene, palm_pos, palm_quat, stage.pregrasp, grasp.joints, obj_q,
                       settings=approach)
@@ -133,6 +138,6 @@ def _plan_and_simulate(scene: ArmScene, settled, palm_pos, palm_quat, grasp: Gra
         plan_s=plan_s, sim_s=time.perf_counter() - t0)
 
 
-def _sim_detail(sim) -> str:
+def _sim_detail(sim: ArmOutcome) -> str:
     return (f"object moved {sim.displacement_m * 1e3:.1f} mm, turned "
             f"{np.degrees(sim.rotation_rad):.1f}°, rose {sim.lifted_m * 1e3:.0f} mm")

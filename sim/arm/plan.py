@@ -24,7 +24,6 @@ import numpy as np
 from sim.arm.ik import IKResult, IKSettings, solve_palm_ik
 from sim.arm.scene import ArmScene
 from sim.transforms import quat_to_mat
-from sim.world.scene import OBJECT_PREFIX
 
 __all__ = ["ApproachSettings", "ArmPlan", "plan_grasp"]
 
@@ -67,11 +66,9 @@ def _object_clearance_m(scene: ArmScene, qpos: np.ndarray, cap_m: float = 0.05) 
     m, d = scene.model, scene.data
     d.qpos[:] = qpos
     mujoco.mj_kinematics(m, d)
-    obj_geoms = [g for g in range(m.ngeom) if m.body(m.geom_bodyid[g]).name.startswith(OBJECT_PREFIX)
-                 and m.geom_contype[g] | m.geom_conaffinity[g]]
     fromto = np.zeros(6)
-    dists = [mujoco.mj_geomDistance(m, d, int(g), o, cap_m, fromto)
-             for g in np.concatenate([scene.arm_geoms, scene.hand_geoms]) for o in obj_geoms]
+    dists = [mujoco.mj_geomDistance(m, d, int(g), int(o), cap_m, fromto)
+             for g in np.concatenate([scene.arm_geoms, scene.hand_geoms]) for o in scene.obj_geoms]
     return min((x for x in dists if x < cap_m), default=float("inf"))
 
 

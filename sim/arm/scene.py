@@ -69,7 +69,8 @@ class ArmScene:
     ``servos`` (when given) sets the hand's position servos as a validation protocol does.
     Attributes: ``arm_qadr`` / ``arm_dadr`` (arm joints, config order), ``hand_qadr`` /
     ``hand_dadr`` (``Hand.joint_names`` order), ``obj_qadr`` / ``obj_dadr`` (-1 without an
-    object), ``palm_site``, ``flange_site``, ``arm_geoms`` / ``hand_geoms`` (collision geom ids),
+    object), ``palm_site``, ``flange_site``, ``arm_geoms`` / ``hand_geoms`` / ``obj_geoms``
+    (collision geom ids),
     ``table_geom`` (-1 without a table).
     """
 
@@ -168,6 +169,7 @@ class ArmScene:
         hand_bodies = np.array([n.startswith(HAND_PREFIX) for n in names])
         self.arm_geoms = _collision_geoms(m, arm_bodies)
         self.hand_geoms = _collision_geoms(m, hand_bodies)
+        self.obj_geoms = _collision_geoms(m, np.array([n.startswith(OBJECT_PREFIX) for n in names]))
         self.palm_site = m.site(PALM_SITE).id
         self.flange_site = m.site(ARM_PREFIX + self.arm.flange_site).id
         self.table_geom = m.geom(TABLE_GEOM).id if self.table is not None else -1

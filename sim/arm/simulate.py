@@ -136,13 +136,17 @@ def simulate_plan(scene: ArmScene, settled: mujoco.MjData, plan: ArmPlan, pregra
     # ctrl = q_path + (kv/kp)·q̇_path; without it the Menagerie UR5e lags 8° behind a 1.5 s move
     lead_s = -m.actuator_biasprm[arm_ids, 2] / m.actuator_gainprm[arm_ids, 0]
     slopes = np.diff(keys, axis=0) / np.maximum(np.diff(times), 1e-9)[:, None]
+    # every step's controls computed once, before stepping
+    now_s = np.arange(nstep) * m.opt.timestep
+    seg = np.minimum(np.searchsorted(times, now_s, side="right") - 1, len(slopes) - 1)
+    arm_ctrl = (np.stack([np.interp(now_s, times, keys[:, j]) for j in range(keys.shape[1])], axis=1)
+                + lead_s * slopes[seg])
+    closing = np.clip((now_s - t_contact) / t.close_s, 0.0, 1.0)[:, None]
+    hand_ctrl = (1.0 - closing) * open_ctrl + closing * squeeze_ctrl
     for k in range(nstep):
-        now = k * m.opt.timestep
-        seg = min(int(np.searchsorted(times, now, side="right")) - 1, len(slopes) - 1)
-        d.ctrl[arm_ids] = ([np.interp(now, times, keys[:, j]) for j in range(keys.shape[1])]
-                           + lead_s * slopes[seg])
-        s = float(np.clip((now - t_contact) / t.close_s, 0.0, 1.0))
-        d.ctrl[hand_ids] = (1.0 - s) * open_ctrl + s * squeeze_ctrl
+        now = now_s[k]
+        d.ctrl[arm_ids] = arm_ctrl[k]
+        d.ctrl[hand_ids] = hand_ctrl[k]
         mujoco.mj_step(m, d)
         if ref is None and now >= t_closed:
             pos, _ = _object_pose(scene, d)
