@@ -6,7 +6,9 @@ Layout (one group per object, with the reference implementation's column names `
 ``/<object>/``
     ``palm_pose`` (N,7) float64: frame_palm in the object frame, metres; attribute
     ``order = "x y z qw qx qy qz"``. ``hand_pose`` (N,J) radians, attribute ``joint_names``.
-    ``gws`` (N) Q1 ε; ``volume`` (N); ``fingers_used`` (N,F) bool, attribute ``finger_names``;
+    ``gws`` (N) Q1 ε; ``volume`` (N); ``grip_ratio`` (N) the least total normal force that
+    holds the validation's loads over the load (:mod:`sim.metrics.holding`; inf: cannot hold,
+    NaN: not computed); ``fingers_used`` (N,F) bool, attribute ``finger_names``;
     ``contact_points`` / ``contact_normals`` (M,3) all grasps' contacts flat (object frame,
     metres; normals outward) with ``contact_finger`` (M) int8 (index into ``finger_names``) and
     ``contact_offsets`` (N+1) int64: grasp i owns rows ``offsets[i]:offsets[i+1]``;
@@ -124,6 +126,7 @@ def from_fsg(grasps: Sequence[Any], joint_names: Sequence[str], finger_names: Se
         "hand_pose": np.array([g.grasp.joints for g in grasps], dtype=float).reshape(
             n, len(joint_names)),
         "gws": np.array([g.epsilon for g in grasps], dtype=float),
+        "grip_ratio": np.array([getattr(g, "grip_ratio", np.nan) for g in grasps], dtype=float),
         "volume": np.array([g.volume for g in grasps], dtype=float),
         "fingers_used": np.array([[f in g.fingers for f in fingers] for g in grasps],
                                  dtype=bool).reshape(n, len(fingers)),

@@ -133,6 +133,7 @@ def measure(objects: list[str], methods: list[str], workspaces: list[str], *, n:
                 t0 = time.perf_counter()
                 res = generate_grasps(hand, cloud, ws, n=n, seed=seed, time_budget_s=budget_s,
                                workers=workers, finger_names=demo_fingers(demo) if demo else None,
+                               hold_protocol=None,  # the paper's method: ranked by ε
                                **VARIANTS[method])  # type: ignore[arg-type]
                 wall = time.perf_counter() - t0
                 k = len(res.grasps)

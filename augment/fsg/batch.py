@@ -23,6 +23,7 @@ from augment.fsg.params import FsgParams
 from augment.fsg.result import FsgGrasp
 from augment.fsg.table import TablePlane
 from sim.grasp import Grasp
+from sim.metrics.holding import HoldLoads
 from sim.transforms import mat_to_quat
 
 if TYPE_CHECKING:
@@ -49,6 +50,8 @@ class SamplerSetup:
         link_penetration: the paper's eq. 3 on the link skeletons (step 6).
         exact_penetration: the caller's exact check that ends step 6, or ``None``.
         params: sampler parameters.
+        hold: the loads the caller's validation will put on the object (each accepted grasp's
+            grip ratio is computed from them), or ``None``.
     """
 
     hand: str
@@ -65,6 +68,7 @@ class SamplerSetup:
     link_penetration: bool
     exact_penetration: PenetrationCheck | None
     params: FsgParams
+    hold: HoldLoads | None = None
 
 
 class Sampler:
@@ -148,6 +152,8 @@ class Sampler:
             if s.exact_penetration is not None and s.exact_penetration(grasp):
                 self.stats["penetration"] += 1
                 continue
+            ratio = (s.hold.grip_ratio(cpts, cnrm, finger_i) if s.hold is not None
+                     else float("nan"))
             self.dedup.add(palm_pos, quat, q)
             self.stats["accepted"] += 1
             self.stats["accepted_open"] += int(not closure)
@@ -156,4 +162,5 @@ class Sampler:
                 contact_normals=cnrm.copy(), contact_finger=finger_i,
                 ws_index=tuple(picks),
                 face_index=tuple(int(fc.face_index[k]) for fc, k in faces),
-                epsilon=float(m.epsilon), volume=float(m.volume), worker=self.worker))
+                epsilon=float(m.epsilon), volume=float(m.volume), worker=self.worker,
+                grip_ratio=ratio))

@@ -60,12 +60,15 @@ class FsgParams:
     dedup_pos_m: float = 0.005
     dedup_quat: float = 5e-3
     dedup_joint_rad: float = 0.1
+    hold_oversample: float = 1.0
 
     def __post_init__(self) -> None:
         for name in ("outer", "inner", "outer_batch", "k_neighbours", "min_contacts",
                      "max_contacts_per_finger", "n_edges", "min_fingers"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+        if not self.hold_oversample >= 1.0:
+            raise ValueError(f"hold_oversample must be >= 1, got {self.hold_oversample}")
         for name in ("match_distance_m", "fingertip_width_m", "contact_plane_m", "mu"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):

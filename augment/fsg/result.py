@@ -32,6 +32,9 @@ class FsgGrasp:
             cloud's ``tip_*`` arrays).
         epsilon, volume: GWS Q1 and hull volume of the contacts.
         worker: worker that generated it.
+        grip_ratio: least total normal force that holds the caller's loads over the load's
+            force (:meth:`sim.metrics.holding.HoldLoads.grip_ratio`; ``inf``: some load cannot
+            be held by these contacts; NaN: no loads given).
     """
 
     grasp: Grasp
@@ -44,6 +47,7 @@ class FsgGrasp:
     epsilon: float
     volume: float
     worker: int = 0
+    grip_ratio: float = float("nan")
 
 
 @dataclass

@@ -19,6 +19,14 @@ strict filter returned 8 grasps of 200 in 60 s; relaxed, 198 come in 13 s and 12
 in lift-drop. The authors' implementation (``src/gws.cc``, read, not run) has no strict filter
 either: it takes ``-offset`` of the facet with the smallest absolute offset as ε, which can be
 positive when the origin lies outside the hull.
+
+Ranking by grip (dexaug, ``hold``): given the loads the caller's validation will apply (the
+object's weight for lift-drop, the pushes of six-dir and the benchmark:
+:func:`sim.validate.loads.hold_loads`), every accepted grasp gets its grip ratio — the least
+total normal force, within the simulation's friction cones, that holds the worst load, over that
+load (:mod:`sim.metrics.holding`) — the workers find ``hold_oversample`` × n grasps, and the n
+with the smallest ratio are kept (ε breaks ties; a grasp whose contacts cannot hold some load
+at all comes last). Without loads, output is sorted by ε as in the paper.
 """
 
 from __future__ import annotations
@@ -39,6 +47,7 @@ from augment.fsg.params import FsgError, FsgParams, load_fsg_params
 from augment.fsg.progress import ProgressBoard, worker_slot
 from augment.fsg.result import FsgGrasp, FsgResult
 from augment.fsg.table import TablePlane
+from sim.metrics.holding import HoldLoads
 from sim.pools import persistent_pool
 
 if TYPE_CHECKING:
@@ -171,7 +180,7 @@ def generate(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: WorkspaceClo
              link_penetration: bool = False,
              exact_penetration: PenetrationCheck | None = None, seed: int = 0,
              time_budget_s: float = 60.0, workers: int = 1,
-             params: FsgParams | None = None,
+             params: FsgParams | None = None, hold: HoldLoads | None = None,
              progress: Callable[[int], None] | None = None) -> FsgResult:
     """Generate up to ``n`` grasps of ``obj`` with ``hand`` from ``workspace`` (the
     :mod:`augment.fsg` overview).
@@ -200,6 +209,8 @@ def generate(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: WorkspaceClo
             shortfall is logged (``FsgResult.stopped == "time budget"``).
         workers: processes (1: in this process).
         params: sampler parameters (default ``[fsg]`` of ``configs/augment.toml``).
+        hold: the loads the caller's validation applies: rank by grip ratio over
+            ``hold_oversample`` × n grasps found (module docstring); ``None``: rank by ε.
         progress: called with the number of grasps found so far while the search runs (at
             most ``n``; before the merge removes the workers' duplicates), about every 0.2 s
             (:mod:`augment.fsg.progress`).
@@ -247,19 +258,25 @@ def generate(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: WorkspaceClo
         table=TablePlane.horizontal(cloud.z_min_m) if table is True else (table or None),
         finger_iteration=finger_iteration, link_penetration=link_penetration,
         exact_penetration=exact_penetration,
-        params=dataclasses.replace(params, min_fingers=max(params.min_fingers, 2)))
+        params=dataclasses.replace(params, min_fingers=max(params.min_fingers, 2)), hold=hold)
+    # with loads, find more than n and keep the n that hold them with the least grip
+    wanted = n if hold is None else math.ceil(n * params.hold_oversample)
+    shown = (None if progress is None
+             else lambda k: progress(min(n, k * n // wanted)))
     # one absolute deadline (CLOCK_MONOTONIC is system-wide): a worker's start-up, its sampler
     # set-up and the pool's queueing count against the budget, not only its own sampling
     deadline = t0 + time_budget_s
     if workers == 1:
         sampler = Sampler(setup, seed, 0)
-        stopped, sets = run_rounds(sampler, n, deadline,
-                                   None if progress is None else lambda k: progress(min(n, k)))
+        stopped, sets = run_rounds(sampler, wanted, deadline, shown)
         outs = [(sampler.accepted, sampler.stats, stopped, sets)]
     else:
-        outs = _run_pool(setup, seed, n, deadline, workers, progress)
+        outs = _run_pool(setup, seed, wanted, deadline, workers, shown)
     grasps, stats, stopped, sets = merge(outs, hand.nq, setup.params)
-    grasps.sort(key=lambda g: -g.epsilon)
+    if hold is None:
+        grasps.sort(key=lambda g: -g.epsilon)
+    else:
+        grasps.sort(key=lambda g: (g.grip_ratio, -g.epsilon))
     grasps = grasps[:n]
     result = FsgResult(grasps=grasps, requested=n, stopped=stopped,
                        elapsed_s=time.monotonic() - t0, stats=stats, finger_sets=sets)

@@ -91,6 +91,7 @@ def generate_cmd(args: argparse.Namespace, console: Console) -> int:
                                          else demo is None),
                        link_penetration=not args.no_linkpen, seed=args.seed,
                        time_budget_s=args.budget, workers=workers,
+                       hold_protocol=args.validate if args.validate != "none" else "lift-drop",
                        progress=lambda k: bar.update(task, completed=k))
         bar.update(task, completed=len(res.grasps))
         results = None

@@ -52,6 +52,7 @@ from sim.hand.model import Hand
 from sim.io import write_bytes_atomic
 from sim.pools import persistent_pool
 from sim.validate.batch import ScenePenetration, validate_many
+from sim.validate.loads import hold_loads
 from sim.validate.result import ValidationResult
 from sim.world.objects import ObjectAsset, load_object
 from teleop.record.demos import extract_demos
@@ -66,16 +67,23 @@ POOL_PRELOAD = ("augment.fsg.run", "sim.validate.batch")
 
 
 def generate_grasps(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: WorkspaceCloud, *,
-                    link_penetration: bool = True, workers: int = 1, **kwargs: Any) -> FsgResult:
+                    link_penetration: bool = True, workers: int = 1,
+                    hold_protocol: str | None = "lift-drop", **kwargs: Any) -> FsgResult:
     """FSG (:func:`augment.fsg.run.generate`) wired to this project's validator: with
     ``link_penetration``, the point-cloud checks end with the exact check in the validator's
-    scene, so no output fails validation for a penetration the simulator sees. Every caller
-    above ``augment`` (CLI, dashboard, benchmarks) generates through here."""
+    scene, so no output fails validation for a penetration the simulator sees; with
+    ``hold_protocol``, FSG ranks its grasps by the grip they need to hold that protocol's loads
+    (:func:`sim.validate.loads.hold_loads`; ``None``: by ε, as the paper). Every caller above
+    ``augment`` (CLI, dashboard, benchmarks) generates through here."""
     exact = ScenePenetration.of(hand.name, obj.name) if link_penetration else None
+    hold = None
+    if hold_protocol is not None:
+        asset = obj if isinstance(obj, ObjectAsset) else load_object(obj.name)
+        hold = hold_loads(asset, hold_protocol)
     if workers > 1:
         persistent_pool(workers, preload=POOL_PRELOAD)
     return generate(hand, obj, workspace, link_penetration=link_penetration,
-                    exact_penetration=exact, workers=workers, **kwargs)
+                    exact_penetration=exact, workers=workers, hold=hold, **kwargs)
 
 
 @dataclass
@@ -119,6 +127,7 @@ def compute_fsg(hand_name: str, object_name: str, demo: Demo | None, opts: Augme
                           link_penetration=opts.link_penetration, seed=opts.seed,
                           finger_iteration=opts.finger_iteration,
                           time_budget_s=opts.time_budget_s, workers=workers,
+                          hold_protocol=opts.validate or "lift-drop",
                           progress=lambda k: tick("fsg", k, opts.n))
     tick("fsg", len(res.grasps), opts.n)
     timings["fsg"] = time.perf_counter() - t0

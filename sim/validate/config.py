@@ -26,6 +26,8 @@ __all__ = ["GRAVITY_MPS2", "PROTOCOLS", "SQUEEZE_CONVENTIONS", "VALIDATE_TOML", 
 PROTOCOLS = ("lift-drop", "six-dir", "dgb")
 #: how a grasp's pregrasp and squeeze are made when it does not carry them (sim.validate.stages)
 SQUEEZE_CONVENTIONS = ("dexaug", "bodex", "dgb-rule")
+#: how the squeeze splits its grip force over the contacts (sim.validate.contact_forces)
+SQUEEZE_FORCES = ("balanced", "equal")
 VALIDATE_TOML = CONFIG_DIR / "validate.toml"
 GRAVITY_MPS2 = 9.81
 
@@ -38,6 +40,7 @@ class CommonParams:
     squeeze_depth_m: float
     grip_safety: float
     min_grip_force_n: float
+    squeeze_forces: str
     close_time_s: float
     settle_time_s: float
     pin_while_closing: bool
@@ -120,9 +123,7 @@ def _load_dgb(sec: Section) -> DgbParams:
         mass_kg = float(mass)
     else:
         raise sec.error("object_mass_kg", f'expected a mass > 0 (kg) or "real", got {mass!r}')
-    convention = sec.str("squeeze_convention")
-    if convention not in SQUEEZE_CONVENTIONS:
-        raise sec.error("squeeze_convention", f"expected one of {SQUEEZE_CONVENTIONS}, got {convention!r}")
+    convention = _choice(sec, "squeeze_convention", SQUEEZE_CONVENTIONS)
     servos = ServoSettings(kp=sec.float("servo_kp", min=1e-6),
                            force_limit=sec.float("servo_force_limit", min=1e-6), ctrl_limited=False)
     return DgbParams(
@@ -141,6 +142,14 @@ def _load_dgb(sec: Section) -> DgbParams:
         squeeze_convention=convention)
 
 
+def _choice(sec: Section, key: str, allowed: tuple[str, ...]) -> str:
+    """The string at ``key``, which must be one of ``allowed``."""
+    value = sec.str(key)
+    if value not in allowed:
+        raise sec.error(key, f"expected one of {allowed}, got {value!r}")
+    return value
+
+
 @dataclass(frozen=True)
 class ValidateConfig:
     common: CommonParams
@@ -154,7 +163,8 @@ class ValidateConfig:
         root.reject_unknown({"common", "lift_drop", "six_dir", "dgb"})
         c = root.section("common")
         c.reject_unknown({"max_penetration_m", "contact_search_m", "pregrasp_backoff_m",
-                          "squeeze_depth_m", "grip_safety", "min_grip_force_n", "close_time_s",
+                          "squeeze_depth_m", "grip_safety", "min_grip_force_n", "squeeze_forces",
+                          "close_time_s",
                           "settle_time_s", "pin_while_closing", "servo_kp_scale", "friction",
                           "solref", "solimp", "gws_mu"})
         pos = {"min": 0.0}
@@ -165,6 +175,7 @@ class ValidateConfig:
             squeeze_depth_m=c.float("squeeze_depth_m", **pos),
             grip_safety=c.float("grip_safety", **pos),
             min_grip_force_n=c.float("min_grip_force_n", **pos),
+            squeeze_forces=_choice(c, "squeeze_forces", SQUEEZE_FORCES),
             close_time_s=c.float("close_time_s", min=1e-3),
             settle_time_s=c.float("settle_time_s", **pos),
             pin_while_closing=c.bool("pin_while_closing"),

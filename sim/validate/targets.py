@@ -35,11 +35,12 @@ import numpy as np
 
 from sim.hand.model import Hand
 from sim.validate.config import GRAVITY_MPS2, CommonParams
+from sim.validate.contact_forces import balanced_normal_forces
 from sim.world.contacts import Contacts
 from sim.world.scene import Scene
 
 __all__ = ["GraspTargets", "finger_joint_mask", "grip_force_n", "joint_stiffness",
-           "targets_from_contacts"]
+           "squeeze_total_n", "targets_from_contacts"]
 
 # relative damping of the pseudo-inverses: the contact Jacobian's (m², as J Jᵀ) and the joint
 # stiffness's (times its largest eigenvalue; only makes singular directions harmless)
@@ -77,14 +78,20 @@ def grip_force_n(scene: Scene, points: np.ndarray, common: CommonParams) -> floa
     both (conservatively, as if they added). Scaled by ``grip_safety``, split over the n
     contacts, never less than ``min_grip_force_n``.
     """
-    d = scene.data
-    weight_n = scene.obj_mass_kg * GRAVITY_MPS2
-    mu = common.contact.friction[0]
+    total_n = squeeze_total_n(points, scene.data.xipos[scene.obj_body], scene.obj_mass_kg, common)
+    return max(total_n / len(points), common.min_grip_force_n)
+
+
+def squeeze_total_n(points: np.ndarray, com_m: np.ndarray, mass_kg: float,
+                    common: CommonParams) -> float:
+    """The squeeze's total normal force (newtons) before the per-contact floor:
+    ``grip_safety · m·g·(1 + d/ρ) / μ`` for contacts at ``points`` (n, 3) around a centre of
+    mass at ``com_m`` (same frame, metres); :func:`grip_force_n` has the reasoning."""
     centroid = points.mean(axis=0)
     spread_m = max(float(np.sqrt(((points - centroid) ** 2).sum(axis=1).mean())), _MIN_LEVER_M)
-    offset_m = float(np.linalg.norm(d.xipos[scene.obj_body] - centroid))
-    total_n = common.grip_safety * weight_n * (1.0 + offset_m / spread_m) / mu
-    return max(total_n / len(points), common.min_grip_force_n)
+    offset_m = float(np.linalg.norm(np.asarray(com_m, dtype=float) - centroid))
+    return (common.grip_safety * mass_kg * GRAVITY_MPS2 * (1.0 + offset_m / spread_m)
+            / common.contact.friction[0])
 
 
 def joint_stiffness(scene: Scene, finger_mask: np.ndarray) -> np.ndarray:
@@ -129,7 +136,7 @@ def targets_from_contacts(scene: Scene, hand: Hand, q: np.ndarray, near: Contact
     for both targets.
     """
     m, d = scene.model, scene.data
-    rows, gaps, closest = [], [], []
+    rows, gaps, closest, normals = [], [], [], []
     jacp = np.zeros((3, m.nv))
     points = near.points_a
     for body in np.unique(near.body_a):
@@ -139,6 +146,7 @@ def targets_from_contacts(scene: Scene, hand: Hand, q: np.ndarray, near: Contact
         rows.append(near.normal[i] @ jacp[:, scene.hand_dadr])
         gaps.append(near.dist[i])
         closest.append(points[i])
+        normals.append(near.normal[i])
     if not rows:
         return GraspTargets(q, q, 0)
     jac = np.array(rows) * finger_mask
@@ -148,9 +156,14 @@ def targets_from_contacts(scene: Scene, hand: Hand, q: np.ndarray, near: Contact
     pinv = jac.T @ solve
     pre = hand.clip(q + pinv @ (gaps - common.pregrasp_backoff_m))
     force_n = grip_force_n(scene, np.array(closest), common)
-    # joint torques that press every contact with force_n (normals point into the object),
+    if common.squeeze_forces == "balanced":
+        forces = balanced_normal_forces(np.array(closest), np.array(normals),
+                                        d.xipos[scene.obj_body], force_n * len(rows))
+    else:
+        forces = np.full(len(rows), force_n)
+    # joint torques that press every contact with its force (normals point into the object),
     # and the servo deflection that produces them
-    torque = jac.T @ np.full(len(rows), force_n)
+    torque = jac.T @ forces
     deflection = _stiffness_pinv(joint_stiffness(scene, finger_mask)) @ torque
     squeeze = hand.clip(q + pinv @ (gaps + common.squeeze_depth_m) + deflection)
     return GraspTargets(pre, squeeze, len(rows), force_n)

@@ -1,0 +1,110 @@
+"""How well does the grip ratio predict the simulated verdict? Precision / recall per object.
+
+FSG ranks its grasps by their grip ratio (``sim.metrics.holding``: the least total normal force
+that holds the validation's loads, within the simulation's friction cones, over the load) before
+anything is simulated. This reads datasets that were validated (``grasps.h5`` of ``dexaug
+augment`` / ``dexaug generate``; passing and rejected tables), recomputes each grasp's grip
+ratio from its stored FSG contacts with the loads of the dataset's protocol, and compares with
+the stored verdicts:
+
+* **AUC**: the probability that a passing grasp needs less grip than a failing one (0.5: no
+  information), beside the same for the GWS ε the paper ranks by;
+* **precision / recall** of the rule "holds when the squeeze the validator applies is at least
+  the least grip": total squeeze ``grip_safety · W · (1 + d/ρ) / μ`` (``configs/validate.toml``;
+  d, ρ from the per-finger contacts, as ``sim.validate.targets`` computes it) ≥ λ*;
+* the share of grasps whose contacts cannot hold the load at all (ratio = inf), and the
+  finger-count distribution of the passing grasps.
+
+    .venv/bin/python benchmarks/bench_grip_predictor.py DATASET.h5 [DATASET.h5 ...]
+
+Prints one Markdown table, a row per dataset and object and one over all of them.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+from augment import dataset
+from sim.metrics.holding import finger_contacts
+from sim.validate.config import GRAVITY_MPS2, ValidateConfig
+from sim.validate.loads import hold_loads
+from sim.validate.targets import squeeze_total_n
+from sim.world.objects import load_object
+
+
+def auc(score: np.ndarray, passed: np.ndarray) -> float:
+    """P(score of a passing grasp < score of a failing one), ties half (Mann–Whitney)."""
+    score = np.where(np.isfinite(score), score, np.finfo(float).max)
+    pos, neg = score[passed], score[~passed]
+    if not len(pos) or not len(neg):
+        return float("nan")
+    less = (pos[:, None] < neg[None, :]).sum() + 0.5 * (pos[:, None] == neg[None, :]).sum()
+    return float(less / (len(pos) * len(neg)))
+
+
+def squeeze_ratio(points: np.ndarray, mass_kg: float, com: np.ndarray, cfg: ValidateConfig) -> float:
+    """The validator's total squeeze over the weight for contacts at ``points`` (one per finger)."""
+    total = squeeze_total_n(points, com, mass_kg, cfg.common)
+    return max(total, cfg.common.min_grip_force_n * len(points)) / (mass_kg * GRAVITY_MPS2)
+
+
+def rows_of(path: Path, cfg: ValidateConfig) -> list[dict[str, object]]:
+    out = []
+    for name, table in dataset.load(path).items():
+        protocol = str(table.attrs.get("protocol") or "lift-drop")
+        obj = load_object(name)
+        hold = hold_loads(obj, protocol, cfg)
+        ratios, budgets, passed, fingers, eps = [], [], [], [], []
+        for t in (table, table.rejected):
+            if t is None:
+                continue
+            for i in range(len(t)):
+                p, n, f = t.contacts(i)
+                ratios.append(hold.grip_ratio(p, n, f))
+                centres, _ = finger_contacts(p, n, f)
+                budgets.append(squeeze_ratio(centres, obj.mass_kg, obj.com_m, cfg))
+                passed.append(bool(t.columns["passed"][i]))
+                fingers.append(int(t.columns["fingers_used"][i].sum()))
+                eps.append(float(t.columns["gws"][i]))
+        out.append({"source": path.parent.name, "object": name, "protocol": protocol,
+                    "ratio": np.array(ratios), "budget": np.array(budgets),
+                    "passed": np.array(passed, bool), "fingers": np.array(fingers),
+                    "epsilon": np.array(eps)})
+    return out
+
+
+def line(label: str, r: dict[str, np.ndarray]) -> str:
+    y, ratio = r["passed"], r["ratio"]
+    pred = np.isfinite(ratio) & (ratio <= r["budget"])
+    tp, fp, fn = int((pred & y).sum()), int((pred & ~y).sum()), int((~pred & y).sum())
+    precision = tp / max(tp + fp, 1)
+    recall = tp / max(tp + fn, 1)
+    kept_pass = Counter(int(k) for k in r["fingers"][y])
+    fingers = " ".join(f"{k}:{v}" for k, v in sorted(kept_pass.items()))
+    return (f"| {label} | {len(y)} | {y.mean():.1%} | {auc(ratio, y):.2f} | {auc(-r['epsilon'], y):.2f} | "
+            f"{pred.mean():.1%} | {precision:.1%} | {recall:.1%} | {np.mean(~np.isfinite(ratio)):.1%} | "
+            f"{fingers} |")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("datasets", nargs="+", type=Path)
+    args = ap.parse_args()
+    cfg = ValidateConfig.load()
+    rows = [r for path in args.datasets for r in rows_of(path, cfg)]
+    print("| dataset / object | grasps | pass | AUC grip ratio | AUC ε | predicted hold | precision | "
+          "recall | cannot hold (inf) | fingers of passing grasps |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for r in rows:
+        print(line(f"{r['source']} / {r['object']} ({r['protocol']})", r))
+    keys = ("ratio", "budget", "passed", "fingers", "epsilon")
+    print(line(f"all ({len({r['object'] for r in rows})} objects)",
+               {k: np.concatenate([r[k] for r in rows]) for k in keys}))
+
+
+if __name__ == "__main__":
+    main()
