@@ -8,7 +8,9 @@ Layout (one group per object, with the reference implementation's column names `
     ``order = "x y z qw qx qy qz"``. ``hand_pose`` (N,J) radians, attribute ``joint_names``.
     ``gws`` (N) Q1 ε; ``volume`` (N); ``grip_ratio`` (N) the least total normal force that
     holds the validation's loads over the load (:mod:`sim.metrics.holding`; inf: cannot hold,
-    NaN: not computed); ``fingers_used`` (N,F) bool, attribute ``finger_names``;
+    NaN: not computed); ``actuator_effort`` (N) the least worst actuator effort, as a fraction of
+    the force limits, that holds them at the placed grasp (:mod:`sim.validate.effort`; > 1: the
+    actuators cannot); ``fingers_used`` (N,F) bool, attribute ``finger_names``;
     ``contact_points`` / ``contact_normals`` (M,3) all grasps' contacts flat (object frame,
     metres; normals outward) with ``contact_finger`` (M) int8 (index into ``finger_names``) and
     ``contact_offsets`` (N+1) int64: grasp i owns rows ``offsets[i]:offsets[i+1]``;
@@ -127,6 +129,8 @@ def from_fsg(grasps: Sequence[Any], joint_names: Sequence[str], finger_names: Se
             n, len(joint_names)),
         "gws": np.array([g.epsilon for g in grasps], dtype=float),
         "grip_ratio": np.array([getattr(g, "grip_ratio", np.nan) for g in grasps], dtype=float),
+        "actuator_effort": np.array([getattr(g, "actuator_effort", np.nan) for g in grasps],
+                                    dtype=float),
         "volume": np.array([g.volume for g in grasps], dtype=float),
         "fingers_used": np.array([[f in g.fingers for f in fingers] for g in grasps],
                                  dtype=bool).reshape(n, len(fingers)),

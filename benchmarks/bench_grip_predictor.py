@@ -1,14 +1,18 @@
-"""How well does the grip ratio predict the simulated verdict? Precision / recall per object.
+"""How well do the physical scores predict the simulated verdict? AUC, precision / recall.
 
-FSG ranks its grasps by their grip ratio (``sim.metrics.holding``: the least total normal force
-that holds the validation's loads, within the simulation's friction cones, over the load) before
-anything is simulated. This reads datasets that were validated (``grasps.h5`` of ``dexaug
-augment`` / ``dexaug generate``; passing and rejected tables), recomputes each grasp's grip
-ratio from its stored FSG contacts with the loads of the dataset's protocol, and compares with
-the stored verdicts:
+FSG can rank its grasps (``hold_oversample`` > 1) by two scores computed before anything is
+simulated: the actuator effort (``sim.validate.effort``: the least worst actuator force, as a
+fraction of its limit, that holds the validation's loads at the placed grasp) and the grip ratio
+(``sim.metrics.holding``: the least total normal force within the simulation's friction cones,
+over the load). This reads datasets that were validated (``grasps.h5`` of ``dexaug augment`` /
+``dexaug generate``; passing and rejected tables), recomputes both for every grasp (the effort
+from the grasp placed in the validator's scene, the grip ratio from its stored FSG contacts)
+with the loads of the dataset's protocol, and compares with the stored verdicts:
 
-* **AUC**: the probability that a passing grasp needs less grip than a failing one (0.5: no
-  information), beside the same for the GWS ε the paper ranks by;
+* **AUC**: the probability that a passing grasp scores lower than a failing one (0.5: no
+  information), for the effort, the grip ratio and the GWS ε the paper ranks by (negated);
+* **effort > 1**: the share of grasps the actuators cannot hold the load with, and how many
+  of those passed;
 * **precision / recall** of the rule "holds when the squeeze the validator applies is at least
   the least grip": total squeeze ``grip_safety · W · (1 + d/ρ) / μ`` (``configs/validate.toml``;
   d, ρ from the per-finger contacts, as ``sim.validate.targets`` computes it) ≥ λ*;
@@ -29,10 +33,13 @@ from pathlib import Path
 import numpy as np
 
 from augment import dataset
+from sim.grasp import Grasp
+from sim.hand.model import Hand
 from sim.metrics.holding import finger_contacts
 from sim.validate.config import GRAVITY_MPS2, ValidateConfig
 from sim.validate.loads import hold_loads
 from sim.validate.targets import squeeze_total_n
+from sim.validate.validator import Validator
 from sim.world.objects import load_object
 
 
@@ -58,13 +65,17 @@ def rows_of(path: Path, cfg: ValidateConfig) -> list[dict[str, object]]:
         protocol = str(table.attrs.get("protocol") or "lift-drop")
         obj = load_object(name)
         hold = hold_loads(obj, protocol, cfg)
-        ratios, budgets, passed, fingers, eps = [], [], [], [], []
+        validator = Validator(Hand.load(str(table.attrs["hand"])), obj, cfg)
+        ratios, budgets, passed, fingers, eps, efforts = [], [], [], [], [], []
         for t in (table, table.rejected):
             if t is None:
                 continue
             for i in range(len(t)):
                 p, n, f = t.contacts(i)
                 ratios.append(hold.grip_ratio(p, n, f))
+                pose = t.columns["palm_pose"][i]
+                efforts.append(validator.actuator_effort(
+                    Grasp(pose[:3], pose[3:], t.columns["hand_pose"][i]), hold, protocol))
                 centres, _ = finger_contacts(p, n, f)
                 budgets.append(squeeze_ratio(centres, obj.mass_kg, obj.com_m, cfg))
                 passed.append(bool(t.columns["passed"][i]))
@@ -73,7 +84,7 @@ def rows_of(path: Path, cfg: ValidateConfig) -> list[dict[str, object]]:
         out.append({"source": path.parent.name, "object": name, "protocol": protocol,
                     "ratio": np.array(ratios), "budget": np.array(budgets),
                     "passed": np.array(passed, bool), "fingers": np.array(fingers),
-                    "epsilon": np.array(eps)})
+                    "epsilon": np.array(eps), "effort": np.array(efforts)})
     return out
 
 
@@ -85,7 +96,9 @@ def line(label: str, r: dict[str, np.ndarray]) -> str:
     recall = tp / max(tp + fn, 1)
     kept_pass = Counter(int(k) for k in r["fingers"][y])
     fingers = " ".join(f"{k}:{v}" for k, v in sorted(kept_pass.items()))
-    return (f"| {label} | {len(y)} | {y.mean():.1%} | {auc(ratio, y):.2f} | {auc(-r['epsilon'], y):.2f} | "
+    over = ~(r["effort"] <= 1.0)
+    return (f"| {label} | {len(y)} | {y.mean():.1%} | {auc(r['effort'], y):.2f} | {auc(ratio, y):.2f} | "
+            f"{auc(-r['epsilon'], y):.2f} | {over.mean():.1%} ({int((over & y).sum())} passed) | "
             f"{pred.mean():.1%} | {precision:.1%} | {recall:.1%} | {np.mean(~np.isfinite(ratio)):.1%} | "
             f"{fingers} |")
 
@@ -96,12 +109,12 @@ def main() -> None:
     args = ap.parse_args()
     cfg = ValidateConfig.load()
     rows = [r for path in args.datasets for r in rows_of(path, cfg)]
-    print("| dataset / object | grasps | pass | AUC grip ratio | AUC ε | predicted hold | precision | "
-          "recall | cannot hold (inf) | fingers of passing grasps |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("| dataset / object | grasps | pass | AUC effort | AUC grip ratio | AUC ε | effort > 1 | "
+          "squeeze ≥ grip | precision | recall | grip inf | fingers of passing grasps |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         print(line(f"{r['source']} / {r['object']} ({r['protocol']})", r))
-    keys = ("ratio", "budget", "passed", "fingers", "epsilon")
+    keys = ("ratio", "budget", "passed", "fingers", "epsilon", "effort")
     print(line(f"all ({len({r['object'] for r in rows})} objects)",
                {k: np.concatenate([r[k] for r in rows]) for k in keys}))
 

@@ -16,7 +16,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from augment.fsg.candidates import Candidates, contact_faces_below_table, first_finger, palm_candidates
-from augment.fsg.checks import Dedup, PenetrationCheck, grasp_quality, link_penetrates
+from augment.fsg.checks import Dedup, EffortScore, PenetrationCheck, grasp_quality, link_penetrates
 from augment.fsg.contacts import collect_contacts
 from augment.fsg.matching import FingerIndex, match_fingers
 from augment.fsg.params import FsgParams
@@ -52,6 +52,7 @@ class SamplerSetup:
         params: sampler parameters.
         hold: the loads the caller's validation will put on the object (each accepted grasp's
             grip ratio is computed from them), or ``None``.
+        effort: the caller's actuator-effort score of each accepted grasp, or ``None``.
     """
 
     hand: str
@@ -69,6 +70,7 @@ class SamplerSetup:
     exact_penetration: PenetrationCheck | None
     params: FsgParams
     hold: HoldLoads | None = None
+    effort: EffortScore | None = None
 
 
 class Sampler:
@@ -154,6 +156,7 @@ class Sampler:
                 continue
             ratio = (s.hold.grip_ratio(cpts, cnrm, finger_i) if s.hold is not None
                      else float("nan"))
+            effort = s.effort(grasp) if s.effort is not None else float("nan")
             self.dedup.add(palm_pos, quat, q)
             self.stats["accepted"] += 1
             self.stats["accepted_open"] += int(not closure)
@@ -163,4 +166,4 @@ class Sampler:
                 ws_index=tuple(picks),
                 face_index=tuple(int(fc.face_index[k]) for fc, k in faces),
                 epsilon=float(m.epsilon), volume=float(m.volume), worker=self.worker,
-                grip_ratio=ratio))
+                grip_ratio=ratio, actuator_effort=effort))

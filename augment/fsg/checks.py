@@ -34,13 +34,18 @@ from sim.metrics.gws import GwsMetrics, gws_metrics
 if TYPE_CHECKING:
     from augment.object_cloud import ObjectCloud
 
-__all__ = ["Dedup", "PenetrationCheck", "eq3_crossing", "grasp_quality", "link_penetrates"]
+__all__ = ["Dedup", "EffortScore", "PenetrationCheck", "eq3_crossing", "grasp_quality", "link_penetrates"]
 
 #: The exact penetration check FSG is given (step 6): ``True`` when the grasp, placed in the
 #: validator's MuJoCo scene, penetrates the object deeper than the validator allows. Injected
 #: (a picklable callable, e.g. :class:`sim.validate.batch.ScenePenetration`) so that the
 #: sampler never imports the physics validator.
 PenetrationCheck = Callable[[Grasp], bool]
+
+#: The actuator-effort score FSG may be given (step 7, dexaug): the least worst actuator effort,
+#: as a fraction of the force limits, with which the hand could hold the validation's loads at
+#: the grasp (e.g. :class:`sim.validate.batch.SceneEffort`); injected like the penetration check.
+EffortScore = Callable[[Grasp], float]
 
 
 def eq3_crossing(skeleton: np.ndarray, nearest: np.ndarray, nearest_normals: np.ndarray) -> bool:

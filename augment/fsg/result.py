@@ -35,6 +35,9 @@ class FsgGrasp:
         grip_ratio: least total normal force that holds the caller's loads over the load's
             force (:meth:`sim.metrics.holding.HoldLoads.grip_ratio`; ``inf``: some load cannot
             be held by these contacts; NaN: no loads given).
+        actuator_effort: least worst actuator effort, as a fraction of the force limits, that
+            holds those loads at the placed grasp (:mod:`sim.validate.effort`; > 1: the
+            actuators cannot; NaN: no effort score given).
     """
 
     grasp: Grasp
@@ -48,6 +51,7 @@ class FsgGrasp:
     volume: float
     worker: int = 0
     grip_ratio: float = float("nan")
+    actuator_effort: float = float("nan")
 
 
 @dataclass

@@ -51,7 +51,7 @@ from sim.errors import DexaugError
 from sim.hand.model import Hand
 from sim.io import write_bytes_atomic
 from sim.pools import persistent_pool
-from sim.validate.batch import ScenePenetration, validate_many
+from sim.validate.batch import SceneEffort, ScenePenetration, validate_many
 from sim.validate.loads import hold_loads
 from sim.validate.result import ValidationResult
 from sim.world.objects import ObjectAsset, load_object
@@ -72,18 +72,43 @@ def generate_grasps(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: Works
     """FSG (:func:`augment.fsg.run.generate`) wired to this project's validator: with
     ``link_penetration``, the point-cloud checks end with the exact check in the validator's
     scene, so no output fails validation for a penetration the simulator sees; with
-    ``hold_protocol``, FSG ranks its grasps by the grip they need to hold that protocol's loads
-    (:func:`sim.validate.loads.hold_loads`; ``None``: by ε, as the paper). Every caller above
+    ``hold_protocol``, FSG ranks its grasps by the actuator effort and the grip they need to
+    hold that protocol's loads (:class:`sim.validate.batch.SceneEffort`,
+    :func:`sim.validate.loads.hold_loads`; ``None``: by ε, as the paper). Every caller above
     ``augment`` (CLI, dashboard, benchmarks) generates through here."""
     exact = ScenePenetration.of(hand.name, obj.name) if link_penetration else None
-    hold = None
+    hold = effort = None
     if hold_protocol is not None:
         asset = obj if isinstance(obj, ObjectAsset) else load_object(obj.name)
         hold = hold_loads(asset, hold_protocol)
+        effort = SceneEffort(hand.name, obj.name, hold_protocol)
     if workers > 1:
         persistent_pool(workers, preload=POOL_PRELOAD)
-    return generate(hand, obj, workspace, link_penetration=link_penetration,
-                    exact_penetration=exact, workers=workers, hold=hold, **kwargs)
+    res = generate(hand, obj, workspace, link_penetration=link_penetration,
+                   exact_penetration=exact, workers=workers, hold=hold, effort=effort, **kwargs)
+    if effort is not None:
+        warn_if_too_heavy(res, effort, obj.name)
+    return res
+
+
+#: grasps whose actuator effort :func:`warn_if_too_heavy` checks (≈ 15 ms each)
+HEAVY_CHECK_GRASPS = 20
+
+
+def warn_if_too_heavy(res: FsgResult, effort: SceneEffort, name: str) -> float:
+    """Warn, in one line, when none of the first :data:`HEAVY_CHECK_GRASPS` grasps could hold
+    the validation's loads with the hand's actuators (effort > 1 at every one: a run of
+    failures is coming, and more squeeze cannot help). Returns the least effort found."""
+    efforts = [g.actuator_effort if g.actuator_effort == g.actuator_effort else effort(g.grasp)
+               for g in res.grasps[:HEAVY_CHECK_GRASPS]]
+    least = min(efforts, default=float("nan"))
+    if efforts and least > 1.0:
+        mass_kg = load_object(name).mass_kg
+        log.warning("%s (%.2f kg, %s): none of the %d grasps checked can hold it with these "
+                    "actuators: the least needs %.1f× their force limits (more fingers, a power "
+                    "grasp or a stronger hand are needed)", name, mass_kg, effort.protocol,
+                    len(efforts), least)
+    return least
 
 
 @dataclass

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import linprog
 
-__all__ = ["HoldLoads", "finger_contacts", "min_grip_force_n"]
+__all__ = ["HoldLoads", "finger_contacts", "min_actuator_effort", "min_grip_force_n"]
 
 
 def finger_contacts(points_m: np.ndarray, normals_out: np.ndarray, finger: np.ndarray
@@ -55,6 +55,33 @@ def _tangents(normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return t1, np.cross(normals, t1)
 
 
+def _contact_columns(points_m: np.ndarray, normals_in: np.ndarray, centre_m: np.ndarray,
+                     mu: float, mu_torsion_m: float, n_edges: int
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """The contact model of the LPs. Variables: ``n·E`` cone-edge magnitudes (each edge carries
+    1 N of normal force), then, with torsional friction, ``n`` positive and ``n`` negative
+    spins about the normals. Returns the (6, V) wrench columns on the object, the (n·E, 3)
+    edge forces, and the (n, V) rows of ``spin⁺ + spin⁻ − μ_t·λ ≤ 0`` (None without
+    torsion)."""
+    n = len(points_m)
+    t1, t2 = _tangents(normals_in)
+    angles = 2 * np.pi * np.arange(n_edges) / n_edges
+    edges = (normals_in[:, None, :] + mu * (np.cos(angles)[None, :, None] * t1[:, None, :]
+                                           + np.sin(angles)[None, :, None] * t2[:, None, :]))
+    torques = np.cross((points_m - np.asarray(centre_m, dtype=float))[:, None, :], edges)
+    columns = [np.concatenate([edges, torques], axis=2).reshape(n * n_edges, 6).T]
+    torsion = None
+    if mu_torsion_m > 0:
+        spin = np.concatenate([np.zeros((n, 3)), normals_in], axis=1).T
+        columns += [spin, -spin]
+        torsion = np.zeros((n, n * n_edges + 2 * n))
+        for i in range(n):
+            torsion[i, i * n_edges:(i + 1) * n_edges] = -mu_torsion_m
+            torsion[i, n * n_edges + i] = 1.0
+            torsion[i, n * n_edges + n + i] = 1.0
+    return np.concatenate(columns, axis=1), edges.reshape(n * n_edges, 3), torsion
+
+
 def min_grip_force_n(points_m: np.ndarray, normals_in: np.ndarray, centre_m: np.ndarray,
                      load: np.ndarray, mu: float, mu_torsion_m: float = 0.0, n_edges: int = 8
                      ) -> float:
@@ -67,34 +94,54 @@ def min_grip_force_n(points_m: np.ndarray, normals_in: np.ndarray, centre_m: np.
     n = len(points_m)
     if n == 0:
         return float("inf")
-    t1, t2 = _tangents(normals_in)
-    angles = 2 * np.pi * np.arange(n_edges) / n_edges
-    # (n, E, 3): the pyramid edges, each with 1 N of normal force
-    edges = (normals_in[:, None, :] + mu * (np.cos(angles)[None, :, None] * t1[:, None, :]
-                                           + np.sin(angles)[None, :, None] * t2[:, None, :]))
-    arms = points_m - np.asarray(centre_m, dtype=float)
-    torques = np.cross(arms[:, None, :], edges)
-    columns = [np.concatenate([edges, torques], axis=2).reshape(n * n_edges, 6).T]
-    cost = [np.ones(n * n_edges)]
-    if mu_torsion_m > 0:
-        # torsion about each normal, ±; bounded by μ_t × that contact's normal force below
-        spin = np.concatenate([np.zeros((n, 3)), normals_in], axis=1).T
-        columns += [spin, -spin]
-        cost += [np.zeros(2 * n)]
-    a_eq = np.concatenate(columns, axis=1)
-    b_eq = -np.asarray(load, dtype=float).reshape(6)
-    a_ub = None
-    b_ub = None
-    if mu_torsion_m > 0:
-        # |s⁺ᵢ| + |s⁻ᵢ| ≤ μ_t Σ_k α_ik  for each contact i
-        a_ub = np.zeros((n, a_eq.shape[1]))
-        for i in range(n):
-            a_ub[i, i * n_edges:(i + 1) * n_edges] = -mu_torsion_m
-            a_ub[i, n * n_edges + i] = 1.0
-            a_ub[i, n * n_edges + n + i] = 1.0
-        b_ub = np.zeros(n)
-    res = linprog(np.concatenate(cost), A_ub=a_ub, b_ub=b_ub, A_eq=a_eq, b_eq=b_eq,
+    a_eq, _, torsion = _contact_columns(points_m, normals_in, centre_m, mu, mu_torsion_m, n_edges)
+    cost = np.zeros(a_eq.shape[1])
+    cost[:n * n_edges] = 1.0
+    res = linprog(cost, A_ub=torsion, b_ub=None if torsion is None else np.zeros(n),
+                  A_eq=a_eq, b_eq=-np.asarray(load, dtype=float).reshape(6),
                   bounds=(0, None), method="highs")
+    return float(res.fun) if res.status == 0 else float("inf")
+
+
+def min_actuator_effort(points_m: np.ndarray, normals_in: np.ndarray, centre_m: np.ndarray,
+                        load: np.ndarray, mu: float, effort_per_force: np.ndarray,
+                        effort_limit: np.ndarray, mu_torsion_m: float = 0.0, n_edges: int = 8
+                        ) -> float:
+    """Least worst actuator effort, as a fraction of its limit, with which the hand holds
+    ``load``: minimise t subject to the contact forces of :func:`min_grip_force_n` holding the
+    load and every actuator's force ``|u_j| ≤ t · effort_limit[j]``, where the actuator forces
+    are linear in the contact forces: ``u = effort_per_force @ f`` with ``effort_per_force``
+    (nu, n, 3) — per contact, the actuator forces that press the object with 1 N along each
+    axis (from the contact Jacobian and the actuator moment arms; the caller builds it). > 1:
+    the actuators cannot hold the load at these contacts however the forces are shared;
+    ``inf``: the friction cones cannot at all."""
+    points_m = np.asarray(points_m, dtype=float).reshape(-1, 3)
+    normals_in = np.asarray(normals_in, dtype=float).reshape(-1, 3)
+    n = len(points_m)
+    if n == 0:
+        return float("inf")
+    a_eq, edges, torsion = _contact_columns(points_m, normals_in, centre_m, mu, mu_torsion_m,
+                                            n_edges)
+    per = np.asarray(effort_per_force, dtype=float).reshape(-1, n, 3)
+    limit = np.asarray(effort_limit, dtype=float).reshape(-1)
+    keep = np.isfinite(limit) & (limit > 0)
+    per, limit = per[keep], limit[keep]
+    # actuator forces per unit of each edge variable: (nu, n·E)
+    contact_of_edge = np.repeat(np.arange(n), n_edges)
+    u_edges = np.einsum("uek,ek->ue", per[:, contact_of_edge, :], edges)
+    v = a_eq.shape[1]
+    u_cols = np.zeros((len(limit), v + 1))
+    u_cols[:, :n * n_edges] = u_edges
+    u_cols[:, v] = -limit
+    a_ub = [u_cols, np.hstack([-u_cols[:, :v], -limit[:, None]])]
+    if torsion is not None:
+        a_ub.append(np.hstack([torsion, np.zeros((n, 1))]))
+    a_ub_m = np.vstack(a_ub)
+    cost = np.zeros(v + 1)
+    cost[v] = 1.0
+    res = linprog(cost, A_ub=a_ub_m, b_ub=np.zeros(len(a_ub_m)),
+                  A_eq=np.hstack([a_eq, np.zeros((6, 1))]),
+                  b_eq=-np.asarray(load, dtype=float).reshape(6), bounds=(0, None), method="highs")
     return float(res.fun) if res.status == 0 else float("inf")
 
 

@@ -19,6 +19,7 @@ from sim.grasp import Grasp
 from sim.hand.model import Hand
 from sim.pools import persistent_pool
 from sim.validate.config import ValidateConfig
+from sim.validate.loads import hold_loads
 from sim.validate.result import ValidationResult
 from sim.validate.validator import BATCH_SIMS, Validator
 from sim.world.objects import load_object
@@ -61,6 +62,24 @@ class ScenePenetration:
     def __call__(self, grasp: Grasp) -> bool:
         v = cached_validator(self.hand, self.obj, self.config_path)
         return v.penetration_m(grasp) > v.config.common.max_penetration_m
+
+
+@dataclass(frozen=True)
+class SceneEffort:
+    """The actuator-effort score a grasp sampler is given: the grasp placed in this process's
+    validator scene of (hand, object, config) for ``protocol``, and the least worst actuator
+    effort with which it could hold that protocol's loads (:meth:`Validator.actuator_effort`,
+    :func:`sim.validate.loads.hold_loads`). Plain names, so it pickles like
+    :class:`ScenePenetration`."""
+
+    hand: str
+    obj: str
+    protocol: str = "lift-drop"
+    config_path: str | None = None
+
+    def __call__(self, grasp: Grasp) -> float:
+        v = cached_validator(self.hand, self.obj, self.config_path)
+        return v.actuator_effort(grasp, hold_loads(v.obj, self.protocol, v.config), self.protocol)
 
 
 def _validate_chunk(args: tuple[str, str, str | None, Sequence[Grasp], str, str | None]

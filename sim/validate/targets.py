@@ -36,6 +36,7 @@ import numpy as np
 from sim.hand.model import Hand
 from sim.validate.config import GRAVITY_MPS2, CommonParams
 from sim.validate.contact_forces import balanced_normal_forces
+from sim.validate.effort import closest_per_body
 from sim.world.contacts import Contacts
 from sim.world.scene import Scene
 
@@ -139,10 +140,8 @@ def targets_from_contacts(scene: Scene, hand: Hand, q: np.ndarray, near: Contact
     rows, gaps, closest, normals = [], [], [], []
     jacp = np.zeros((3, m.nv))
     points = near.points_a
-    for body in np.unique(near.body_a):
-        sel = np.flatnonzero(near.body_a == body)
-        i = sel[np.argmin(near.dist[sel])]
-        mujoco.mj_jac(m, d, jacp, None, points[i], int(body))
+    for i in closest_per_body(near):
+        mujoco.mj_jac(m, d, jacp, None, points[i], int(near.body_a[i]))
         rows.append(near.normal[i] @ jacp[:, scene.hand_dadr])
         gaps.append(near.dist[i])
         closest.append(points[i])

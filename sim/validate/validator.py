@@ -27,10 +27,12 @@ import numpy as np
 from sim.grasp import Grasp
 from sim.hand.model import Hand
 from sim.metrics.gws import gws_metrics
+from sim.metrics.holding import HoldLoads
 from sim.transforms import pose_inv, pose_mul, rotate
 from sim.validate.batched import BatchRunner, ProgramRunner, validate_batched
 from sim.validate.config import PROTOCOLS, ValidateConfig
 from sim.validate.dgb import run_dgb
+from sim.validate.effort import actuator_effort
 from sim.validate.lift_drop import Observer, lift_drop
 from sim.validate.program import Advance, Program, run_here
 from sim.validate.result import Failure, ValidationResult
@@ -184,6 +186,15 @@ class Validator:
         metrics = gws_metrics(pts, nrm, mu=self.config.common.gws_mu, centre=self.obj.com_m,
                               torque_scale_m=self.obj.max_radius_m)
         result.epsilon, result.volume = metrics.epsilon, metrics.volume
+
+    def actuator_effort(self, grasp: Grasp, hold: HoldLoads, protocol: str = "lift-drop") -> float:
+        """Least worst actuator effort (fraction of the force limits of ``protocol``'s scene)
+        with which the hand could hold ``hold``'s loads at the grasp's contacts
+        (:mod:`sim.validate.effort`); > 1: these actuators cannot hold them however the grasp
+        squeezes. One collision pass and a linear programme, no simulation."""
+        scene = self.scene(protocol)
+        self._place(scene, grasp, self.hand.check_q(grasp.joints, "grasp joints"))
+        return actuator_effort(scene, self._near_contacts(scene), self._finger_mask, hold)
 
     # ---------------------------------------------------------------------------- protocols
 

@@ -1,0 +1,65 @@
+"""Can the hand's actuators hold the load at a grasp's contacts? The least worst actuator effort.
+
+:func:`sim.metrics.holding.min_actuator_effort` is a linear programme over the contact forces;
+this builds its actuator model from the validator's scene at the placed grasp: one contact per
+hand body near the object (its closest point and normal, as the squeeze targets use), the
+contact Jacobians over the finger joints, and the actuators' moment arms M (``τ = Mᵀ u``), so
+that the actuator forces that press contact i with force f are ``u = (Mᵀ)⁺ J_iᵀ f``
+(pseudo-inverse: one tendon actuator drives two coupled joints), bounded by each actuator's
+``forcerange``. The wrist and arm carry the rest of the load through the mount, so only finger
+joints count. The answer is a capability bound — servos do not share forces optimally — so a
+grasp above 1 cannot hold the load with these actuators however it squeezes, and one below 1
+may still slip.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from sim.metrics.holding import HoldLoads, min_actuator_effort
+from sim.world.contacts import Contacts
+from sim.world.scene import Scene
+
+__all__ = ["actuator_effort", "closest_per_body"]
+
+
+def closest_per_body(near: Contacts) -> np.ndarray:
+    """Indices into ``near`` of each hand body's closest contact (by signed distance), in
+    order of body id."""
+    return np.array([np.flatnonzero(near.body_a == b)[np.argmin(near.dist[near.body_a == b])]
+                     for b in np.unique(near.body_a)], dtype=int)
+
+
+def actuator_effort(scene: Scene, near: Contacts, finger_mask: np.ndarray, hold: HoldLoads) -> float:
+    """Over ``hold``'s loads, the largest least worst actuator effort (fraction of the force
+    limit) of the grasp placed in ``scene`` with hand–object contacts and near misses ``near``;
+    ``inf`` when no body is near or some load cannot be held by friction. Loads are taken in the
+    object frame, which the validator's scene keeps aligned with the world."""
+    m, d = scene.model, scene.data
+    idx = closest_per_body(near)
+    if not len(idx):
+        return float("inf")
+    moment = np.zeros((m.nu, m.nv))
+    mujoco.mju_sparse2dense(moment, d.actuator_moment, d.moment_rownnz, d.moment_rowadr,
+                            d.moment_colind)
+    acts = scene.hand_act
+    arm = moment[np.ix_(acts, scene.hand_dadr)] * finger_mask
+    to_effort = np.linalg.pinv(arm.T, rcond=1e-6)
+    points = near.points_a[idx]
+    jacp = np.zeros((3, m.nv))
+    per = np.zeros((len(acts), len(idx), 3))
+    for c, i in enumerate(idx):
+        mujoco.mj_jac(m, d, jacp, None, points[c], int(near.body_a[i]))
+        per[:, c, :] = to_effort @ (jacp[:, scene.hand_dadr] * finger_mask).T
+    limited = m.actuator_forcelimited[acts].astype(bool)
+    limit = np.where(limited, m.actuator_forcerange[acts, 1], np.inf)
+    com = d.xipos[scene.obj_body]
+    worst = 0.0
+    for load in np.asarray(hold.loads, dtype=float).reshape(-1, 6):
+        t = min_actuator_effort(points, near.normal[idx], com, load, hold.mu, per, limit,
+                                hold.mu_torsion_m)
+        if not np.isfinite(t):
+            return float("inf")
+        worst = max(worst, t)
+    return worst
