@@ -139,6 +139,9 @@ def test_actuator_effort_is_linear_in_the_load_and_bounded_by_the_limits(shadow)
     assert validator.actuator_effort(ref.grasp, hold) == pytest.approx(2 * effort, rel=1e-4)
     model.actuator_forcerange[:] *= 2.0
     assert SceneEffort(shadow.name, obj.name)(ref.grasp) == pytest.approx(effort, rel=1e-6)
+    # the benchmark's scene: a floating palm without wrist joints, ±3 N·m on every finger servo
+    dgb = SceneEffort(shadow.name, obj.name, "dgb")(ref.grasp)
+    assert 0.0 < dgb < 1.0
 
     from augment.autows.build import build_workspace
     from augment.object_cloud import object_cloud

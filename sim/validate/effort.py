@@ -33,10 +33,13 @@ def closest_per_body(near: Contacts) -> np.ndarray:
 
 def actuator_effort(scene: Scene, near: Contacts, finger_mask: np.ndarray, hold: HoldLoads) -> float:
     """Over ``hold``'s loads, the largest least worst actuator effort (fraction of the force
-    limit) of the grasp placed in ``scene`` with hand–object contacts and near misses ``near``;
+    limit) of the grasp placed in ``scene`` with hand–object contacts and near misses ``near``
+    (``finger_mask`` over the hand's joints, :func:`sim.validate.targets.finger_joint_mask`);
     ``inf`` when no body is near or some load cannot be held by friction. Loads are taken in the
     object frame, which the validator's scene keeps aligned with the world."""
     m, d = scene.model, scene.data
+    # the scene may lack some of the hand's joints (the benchmark's floating palm has no wrist)
+    finger_mask = np.asarray(finger_mask, dtype=bool)[scene.hand_joint_kept]
     idx = closest_per_body(near)
     if not len(idx):
         return float("inf")
