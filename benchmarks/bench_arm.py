@@ -2,16 +2,22 @@
 
 For each object with a committed demo (``recordings/demos/<object>.json``), the demo is
 augmented as ``dexaug augment`` does (``--n`` grasps, lift-drop; its passing grasps are the
-input), then every grasp meets the object at ``--placements`` resting placements on the table
-for each arm (:func:`sim.arm.evaluate.evaluate_on_arm`). Printed as a Markdown table per arm and
-object: (placement, grasp) pairs, the share that clears the table pre-filter, the share that
-is reachable (IK at pregrasp, approach, grasp and lift), the share collision-free along the
-way, the share that holds in simulation, the failure counts, and seconds per planned grasp
-(IK + planning + simulation) and per pair. A second table places the object upright only (as
-the demos recorded it), random position and yaw.
+input), then grasps meet the object at ``--placements`` resting placements on the table for
+each arm (:func:`sim.arm.evaluate.evaluate_on_arm`), in each of two ways
+(:mod:`dexaug.pipeline.arm_run`): ``carried`` (the paper's: the dataset's grasps carried to
+every placement) and ``as-it-lies`` (:class:`dexaug.pipeline.rest_grasps.RestGrasps`: ``--n``
+grasps made per resting pose with the demo's workspace, FSG with that pose's table, lift-drop
+hanging as it hangs; made once per object, shared by the arms). Printed as a Markdown table
+per mode, arm and object: the grasps per placement, (placement, grasp) pairs, the share that
+clears the table pre-filter, is reachable (IK at pregrasp, approach, grasp and lift),
+collision-free along the way and holds in simulation; the placements where at least one grasp
+holds; the failure counts; seconds per planned grasp (IK + planning + simulation) and per pair,
+and, as it lies, seconds making the grasps. ``--upright`` adds the carried grasps with the
+object upright only (as the demos recorded it).
 
     .venv/bin/python benchmarks/bench_arm.py [--objects 005_tomato_soup_can ...] [--n 50]
-        [--placements 20] [--arms ur5e kuka_iiwa_14]
+        [--placements 20] [--arms ur5e kuka_iiwa_14] [--modes carried as-it-lies] [--upright]
+        [--images DIR]
 """
 
 from __future__ import annotations
@@ -20,22 +26,28 @@ import argparse
 import tempfile
 import time
 from collections import Counter
+from collections.abc import Sequence
 from pathlib import Path
 
 from augment import dataset
 from dexaug.pipeline.options import AugmentOptions
+from dexaug.pipeline.rest_grasps import RestGrasps
 from dexaug.pipeline.run import augment_demo
 from sim.arm.config import load_arm_config
-from sim.arm.evaluate import ArmGraspResult, evaluate_on_arm
+from sim.arm.evaluate import ArmGraspResult, GraspSource, evaluate_on_arm
 from sim.arm.scene import ArmScene
 from sim.demo import load_demo
 from sim.grasp import Grasp
 from sim.hand.model import Hand
+from sim.validate.batch import default_workers
 from sim.world.objects import load_object
 from sim.world.render import render_scene, save_png
 from sim.world.resting import resting_poses
 
 DEMOS = Path(__file__).resolve().parents[1] / "recordings" / "demos"
+HEADER = ("| mode | arm | object | grasps / placement | pairs | table-clear % | reachable % | "
+          "collision-free % | hold % | placements held | failures | s / planned grasp | "
+          "s / pair | s making grasps |\n" + "| --- " * 14 + "|")
 
 
 def pct(k: int, n: int) -> str:
@@ -54,6 +66,24 @@ def render_result(scene: ArmScene, result: ArmGraspResult, path: Path) -> None:
                                 distance_m=0.8, azimuth_deg=200.0, elevation_deg=-12.0))
 
 
+def row(mode: str, arm: str, name: str, res: Sequence[ArmGraspResult], placements: int,
+        wall_s: float, making_s: float) -> str:
+    """One Markdown row of the module docstring's table."""
+    n = len(res)
+    fails = Counter(r.failure for r in res if r.failure)
+    clear = n - fails["table"]
+    reach = clear - fails["unreachable"]
+    free = reach - fails["collision"]
+    held = sum(r.passed for r in res)
+    held_at = len({r.placement for r in res if r.passed})
+    planned = [r for r in res if r.times_s is not None]
+    per = sum(r.plan_s + r.sim_s for r in planned) / len(planned) if planned else float("nan")
+    return (f"| {mode} | {arm} | {name} | {n / placements:.1f} | {n} | {pct(clear, n)} | "
+            f"{pct(reach, n)} | {pct(free, n)} | {pct(held, n)} | {held_at} / {placements} | "
+            f"{', '.join(f'{k} {v}' for k, v in sorted(fails.items()))} | {per:.2f} | "
+            f"{(wall_s - making_s) / max(n, 1):.3f} | {making_s:.0f} |")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     parser.add_argument("--objects", nargs="+",
@@ -61,11 +91,14 @@ def main() -> None:
     parser.add_argument("--n", type=int, default=50)
     parser.add_argument("--placements", type=int, default=20)
     parser.add_argument("--arms", nargs="+", default=["ur5e", "kuka_iiwa_14"])
-    parser.add_argument("--images", type=Path, help="write the first held grasp of each upright "
-                        "row as <arm>_<object>.png here (the paper's Fig. 12)")
+    parser.add_argument("--modes", nargs="+", default=["carried", "as-it-lies"],
+                        choices=["carried", "as-it-lies"])
+    parser.add_argument("--upright", action="store_true",
+                        help="also the carried grasps with the object upright only")
+    parser.add_argument("--images", type=Path, help="write the first held grasp of each row as "
+                        "<mode>_<arm>_<object>.png here (the paper's Fig. 12)")
     args = parser.parse_args()
-    print("| arm | object | grasps | pairs | table-clear % | reachable % | collision-free % | "
-          "hold % | failures | s / planned grasp | s / pair |\n" + "| --- " * 11 + "|")
+    print(HEADER, flush=True)
     upright_rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for name in args.objects:
@@ -75,39 +108,39 @@ def main() -> None:
             grasps = [Grasp.from_arrays(table["palm_pose"][i][:3], table["palm_pose"][i][3:],
                                         table["hand_pose"][i]) for i in range(len(table))]
             hand, obj = Hand.load(demo.hand), load_object(name)
+            sources: dict[str, GraspSource] = {
+                "carried": grasps,
+                "as-it-lies": RestGrasps(hand, obj, demo, n=args.n, workers=default_workers())}
+            for mode in args.modes:
+                making_s = 0.0
+                for arm in args.arms:
+                    source = sources[mode]
+                    t0 = time.perf_counter()
+                    t_make = time.perf_counter()
+                    if isinstance(source, RestGrasps):   # make every pose's set, timed apart
+                        for k, pose in enumerate(resting_poses(obj).poses):
+                            source(k, pose)
+                        making_s = time.perf_counter() - t_make
+                    _, res = evaluate_on_arm(load_arm_config(arm), hand, obj, source,
+                                             placements=args.placements, seed=0)
+                    wall = time.perf_counter() - t0
+                    print(row(mode, arm, name, res, args.placements, wall, making_s), flush=True)
+                    if args.images and (held_one := next((r for r in res if r.passed), None)):
+                        render_result(ArmScene(load_arm_config(arm), hand, obj), held_one,
+                                      args.images / f"{mode}_{arm}_{name}.png")
+                    making_s = 0.0   # made once per object, shared by the next arm
             upright = resting_poses(obj).upright_index()
+            if not args.upright or upright is None:
+                continue
             for arm in args.arms:
                 t0 = time.perf_counter()
-                _, res = evaluate_on_arm(load_arm_config(arm), hand, obj, grasps,
-                                         placements=args.placements, seed=0)
-                wall = time.perf_counter() - t0
-                n = len(res)
-                fails = Counter(r.failure for r in res if r.failure)
-                clear = n - fails["table"]
-                reach = clear - fails["unreachable"]
-                free = reach - fails["collision"]
-                held = sum(r.passed for r in res)
-                planned = [r for r in res if r.times_s is not None]
-                per = sum(r.plan_s + r.sim_s for r in planned) / len(planned) if planned else float("nan")
-                print(f"| {arm} | {name} | {len(grasps)} | {n} | {pct(clear, n)} | {pct(reach, n)} | "
-                      f"{pct(free, n)} | {pct(held, n)} | "
-                      f"{', '.join(f'{k} {v}' for k, v in sorted(fails.items()))} | {per:.2f} | "
-                      f"{wall / n:.3f} |", flush=True)
-                if upright is None:
-                    continue
                 _, up = evaluate_on_arm(load_arm_config(arm), hand, obj, grasps,
                                         placements=args.placements, seed=0, rest_index=upright)
-                if args.images and (held_one := next((r for r in up if r.passed), None)):
-                    render_result(ArmScene(load_arm_config(arm), hand, obj), held_one,
-                                  args.images / f"{arm}_{name}.png")
-                f_up = Counter(r.failure for r in up if r.failure)
-                upright_rows.append(
-                    f"| {arm} | {name} | {len(up)} | {pct(len(up) - f_up['table'], len(up))} | "
-                    f"{pct(sum(r.passed for r in up), len(up))} | "
-                    f"{', '.join(f'{k} {v}' for k, v in sorted(f_up.items()))} |")
-    print("\nObject upright (as in the demos), random position and yaw:\n"
-          "| arm | object | pairs | table-clear % | hold % | failures |\n" + "| --- " * 6 + "|")
-    print("\n".join(upright_rows))
+                upright_rows.append(row("carried, upright", arm, name, up, args.placements,
+                                        time.perf_counter() - t0, 0.0))
+    if upright_rows:
+        print("\nObject upright (as in the demos), random position and yaw:\n" + HEADER)
+        print("\n".join(upright_rows))
 
 
 if __name__ == "__main__":

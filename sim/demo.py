@@ -20,7 +20,7 @@ from sim.errors import DexaugError
 from sim.grasp import Grasp
 from sim.io import write_bytes_atomic
 
-__all__ = ["DEMO_FORMAT", "Demo", "DemoError", "demo_to_json", "load_demo", "save_demo"]
+__all__ = ["DEMO_FORMAT", "Demo", "DemoError", "demo_from_json", "demo_to_json", "load_demo", "save_demo"]
 
 DEMO_FORMAT = "dexaug-demo-1"
 
@@ -97,6 +97,12 @@ def load_demo(path: Path | str) -> Demo:
         doc = json.loads(path.read_text())
     except (OSError, json.JSONDecodeError) as exc:
         raise DemoError(f"{path}: not a readable demo file ({exc})") from None
+    return demo_from_json(doc, path)
+
+
+def demo_from_json(doc: Any, path: Path | str) -> Demo:
+    """The demo in ``doc`` (:func:`demo_to_json`'s data, e.g. kept in a dataset's provenance);
+    ``path`` names where it came from in errors (and is the source when ``doc`` has none)."""
     if not isinstance(doc, dict) or doc.get("format") != DEMO_FORMAT:
         raise DemoError(f"{path}: field 'format' must be {DEMO_FORMAT!r}")
 

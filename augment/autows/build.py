@@ -16,7 +16,8 @@ The cloud itself is described in :mod:`augment.autows.cloud`. How it is built:
 * **Skeletons.** For every kept point, points every ``skeleton_spacing_m`` (5 mm) along the
   finger's links from the first link's origin to the fingertip body origin
   (:meth:`sim.hand.model.Hand.skeleton` without its last segment: the paper's ``cloud_link`` excludes
-  the fingertip, which touches the object by design). Stored as float32, (N, K, 3) per finger.
+  the fingertip, which touches the object by design). Stored as float32, (N, K, 3) per finger;
+  the rest, along the fingertip link to the pulp, apart (``tip_skeleton``: a table's check).
 * **Priority.** Fingers are kept in the hand config's order (thumb first).
 * **Cache.** Clouds are cached on disk (:mod:`augment.autows.cache`); files are ``.npz`` written
   atomically.
@@ -77,8 +78,9 @@ def _finger_cloud(hand: Hand, index: int, tip: FingertipFaces, q: np.ndarray,
 
     skel = hand.skeleton(q, cfg.name, params.skeleton_spacing_m)
     at_tip = np.flatnonzero(np.linalg.norm(skel[0] - tip_pos[0], axis=1) < 1e-9)
+    tip_skel = skel[:, :0]
     if len(at_tip):
-        skel = skel[:, :at_tip[-1] + 1]
+        skel, tip_skel = skel[:, :at_tip[-1] + 1], skel[:, at_tip[-1] + 1:]
     else:  # Hand.skeleton changed shape: keep all of it rather than guess
         log.warning("finger %s: no skeleton point at the fingertip body origin; keeping the "
                     "whole skeleton", cfg.name)
@@ -90,7 +92,8 @@ def _finger_cloud(hand: Hand, index: int, tip: FingertipFaces, q: np.ndarray,
         face_index=face_index[keep], face_kind=kind[face_index[keep]],
         radius=t_radius[face_index[keep]], half_edges=half[keep],
         skeleton=skel.astype(np.float32)[combo], tip_centres=t_centres, tip_normals=t_normals,
-        tip_radius=t_radius, tip_half_edges=t_half, tip_area=t_area)
+        tip_radius=t_radius, tip_half_edges=t_half, tip_area=t_area,
+        tip_skeleton=tip_skel.astype(np.float32)[combo])
 
 
 def build_workspace(hand: Hand, params: AutoWSParams | None = None,

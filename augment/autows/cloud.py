@@ -25,7 +25,7 @@ from sim.io import atomic_path
 __all__ = ["FACE_KINDS", "FORMAT_VERSION", "FingerCloud", "WorkspaceCloud", "summarise"]
 
 #: Bumped whenever the algorithm or the file layout changes: old cache files stop matching.
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
 #: Face kinds as stored in ``FingerCloud.face_kind`` (index into this tuple).
 FACE_KINDS = ("circle", "rect")
 
@@ -48,6 +48,9 @@ class FingerCloud:
         tip_centres, tip_normals: (F,3) the faces in the tip body frame.
         tip_radius: (F,) radii (NaN for rectangles); tip_half_edges: (F,2,3) (NaN for circles).
         tip_area: (F,) face areas, square metres.
+        tip_skeleton: (N,J,3) float32 points along the fingertip link beyond ``skeleton``'s
+            last one, to the pulp: not for the link check (the fingertip touches by design) but
+            for a table, which no part of the finger may enter. Empty (N,0,3) when not built.
     """
 
     name: str
@@ -65,11 +68,15 @@ class FingerCloud:
     tip_radius: np.ndarray
     tip_half_edges: np.ndarray
     tip_area: np.ndarray
+    tip_skeleton: np.ndarray | None = None
 
     ARRAYS = ("positions", "normals", "joints", "face_index", "face_kind", "radius", "half_edges",
-              "skeleton", "tip_centres", "tip_normals", "tip_radius", "tip_half_edges", "tip_area")
+              "skeleton", "tip_centres", "tip_normals", "tip_radius", "tip_half_edges", "tip_area",
+              "tip_skeleton")
 
     def __post_init__(self) -> None:
+        if self.tip_skeleton is None:
+            object.__setattr__(self, "tip_skeleton", np.zeros((len(self.positions), 0, 3), np.float32))
         for a in self.ARRAYS:  # the arrays are shared, never copied: make them read-only
             arr = np.asarray(getattr(self, a))
             arr.flags.writeable = False

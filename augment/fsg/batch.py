@@ -9,13 +9,19 @@ then one permutation per further finger), so that a seed gives the same grasps.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from augment.fsg.candidates import Candidates, contact_faces_below_table, first_finger, palm_candidates
+from augment.fsg.candidates import (
+    Candidates,
+    contact_faces_below_table,
+    first_finger,
+    links_below_table,
+    palm_candidates,
+)
 from augment.fsg.checks import Dedup, EffortScore, PenetrationCheck, grasp_quality, link_penetrates
 from augment.fsg.contacts import collect_contacts
 from augment.fsg.matching import FingerIndex, match_fingers
@@ -27,7 +33,7 @@ from sim.metrics.holding import HoldLoads
 from sim.transforms import mat_to_quat
 
 if TYPE_CHECKING:
-    from augment.autows.cloud import WorkspaceCloud
+    from augment.autows.cloud import FingerCloud, WorkspaceCloud
     from augment.object_cloud import ObjectCloud
 
 __all__ = ["Sampler", "SamplerSetup"]
@@ -53,6 +59,8 @@ class SamplerSetup:
         hold: the loads the caller's validation will put on the object (each accepted grasp's
             grip ratio is computed from them), or ``None``.
         effort: the caller's actuator-effort score of each accepted grasp, or ``None``.
+        idle_skeletons: per finger of the hand, its link skeleton (K,3, ``frame_palm``) at the
+            zero joints a grasp leaves an unused finger at; table mode checks them.
     """
 
     hand: str
@@ -71,6 +79,7 @@ class SamplerSetup:
     params: FsgParams
     hold: HoldLoads | None = None
     effort: EffortScore | None = None
+    idle_skeletons: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 class Sampler:
@@ -113,6 +122,18 @@ class Sampler:
             return
         self._finish(fingers, s_idx, cands, chosen)
 
+    def _in_table(self, fingers: tuple[str, ...], faces: list[tuple[FingerCloud, int]],
+                  r: np.ndarray, t: np.ndarray) -> bool:
+        """Table mode's checks once the fingers are matched: contact-face rims, then the links
+        of used fingers at their workspace joints and of idle ones at zero."""
+        s, p = self.setup, self.params
+        if contact_faces_below_table(faces, r, t, s.table, p.table_clearance_m):
+            return True
+        # the whole finger, fingertip link included (the link check leaves it to the contact)
+        skeletons = [np.vstack([fc.skeleton[k], fc.tip_skeleton[k]]) for fc, k in faces]
+        skeletons += [sk for f, sk in s.idle_skeletons.items() if f not in fingers]
+        return links_below_table(skeletons, r, t, s.table, p.link_clearance_m + p.table_clearance_m)
+
     def _finish(self, fingers: tuple[str, ...], s_idx: np.ndarray, cands: Candidates,
                 chosen: dict[str, np.ndarray]) -> None:
         """Steps 5–8 on the matched candidates ``s_idx``, in order."""
@@ -125,8 +146,7 @@ class Sampler:
             if reason is not None:
                 self.stats[reason] += 1
                 continue
-            if s.table is not None and contact_faces_below_table(faces, r, t, s.table,
-                                                                 p.table_clearance_m):
+            if s.table is not None and self._in_table(fingers, faces, r, t):
                 self.stats["table"] += 1
                 continue
             if s.link_penetration and link_penetrates(

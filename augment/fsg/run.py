@@ -178,6 +178,13 @@ def merge(outs: Sequence[WorkerOutput], nq: int, params: FsgParams
     return grasps, stats, stopped, sets
 
 
+def _idle_skeletons(hand: Hand) -> dict[str, np.ndarray]:
+    """Each finger's link skeleton (K,3, ``frame_palm``) at zero joints, where a grasp leaves
+    the fingers it does not use: table mode keeps them out of the table too."""
+    q = np.zeros(hand.nq)
+    return {f: hand.skeleton(q, f)[0] for f in hand.finger_names}
+
+
 def generate(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: WorkspaceCloud, *,
              n: int = 10, fingers: int | None = None,
              finger_names: Sequence[str] | None = None, table: bool | TablePlane = False,
@@ -270,7 +277,7 @@ def generate(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: WorkspaceClo
         finger_iteration=finger_iteration, link_penetration=link_penetration,
         exact_penetration=exact_penetration,
         params=dataclasses.replace(params, min_fingers=max(params.min_fingers, 2)), hold=hold,
-        effort=effort)
+        effort=effort, idle_skeletons=_idle_skeletons(hand) if table else {})
     # with loads, find more than n and keep the n that hold them with the least effort / grip
     ranked = hold is not None or effort is not None
     wanted = math.ceil(n * params.hold_oversample) if ranked else n

@@ -20,7 +20,9 @@ __all__ = ["arm_cmd"]
 
 
 def _arm_args(p: argparse.ArgumentParser) -> None:
+    from dexaug.pipeline.arm_run import GRASP_SOURCES
     from sim.arm.config import arm_names
+    from sim.validate.batch import default_workers
 
     p.add_argument("dataset", type=Path, help="a grasps.h5 written by augment/generate (its "
                    "passing grasps are used)")
@@ -31,7 +33,15 @@ def _arm_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="placement seed; default %(default)s")
     p.add_argument("--object", help="only this object's table (default: every object)")
     p.add_argument("--max-grasps", type=count, default=None, metavar="N",
-                   help="at most the first N grasps of each table (default: all)")
+                   help="at most the first N grasps of each table; as it lies, N new grasps "
+                   "per resting pose (default: all / as many as the table holds)")
+    p.add_argument("--grasps", choices=GRASP_SOURCES, default="carried",
+                   help="carried: the dataset's grasps carried to each placement (the paper's "
+                   "§5.3); as-it-lies: grasps made for each resting pose with the dataset's "
+                   "demonstration (FSG with that pose's table, lift-drop hanging as it hangs); "
+                   "default %(default)s")
+    p.add_argument("--workers", type=count, default=default_workers(),
+                   help="processes making and validating grasps as they lie; default %(default)s")
     p.add_argument("--out", type=Path, default=Path("arm_grasps.h5"),
                    help="arm dataset to write (replaced atomically); default %(default)s")
 
@@ -43,8 +53,9 @@ def arm_cmd(args: argparse.Namespace, console: Console) -> int:
     For each object the hand (on the arm's flange, configs/hands/<hand>/hand.toml [mount]) meets
     the object at --placements resting poses drawn on the table (physically found, weighted by
     how often a drop reaches them), settled in MuJoCo; each grasp is carried to the settled
-    pose, dropped if the hand would be in the table, solved with whole-body IK (mink; arm
-    joints, the grasp's finger joints fixed, table collision limits), approached from 10 cm
+    pose (or, with --grasps as-it-lies, grasps are made for each resting pose), dropped if the
+    hand would be in the table, solved with whole-body IK (mink; arm joints, the grasp's
+    finger joints fixed, table collision limits), approached from 10 cm
     behind the palm, checked for collisions along the way, then simulated: the arm follows the
     trajectory, the fingers close, the arm lifts 10 cm and holds. Every (placement, grasp)
     gets a verdict (passed, or table / unreachable / collision / pushed / dropped / slipped)
@@ -56,7 +67,8 @@ def arm_cmd(args: argparse.Namespace, console: Console) -> int:
         tick = stage_ticker(bar)
         summaries = run_arm(args.dataset, args.arm, args.out, placements=args.placements,
                             seed=args.seed, object_name=args.object, max_grasps=args.max_grasps,
-                            progress=lambda name, done, total: tick(f"{args.arm} {name}", done, total))
+                            progress=lambda name, done, total: tick(f"{args.arm} {name}", done, total),
+                            grasps_from=args.grasps, workers=args.workers)
     t = Table(title=f"grasps on {args.arm}")
     for col in ("object", "grasps", "placement × grasp", "passed", "pass %", "failures",
                 "s per planned grasp"):

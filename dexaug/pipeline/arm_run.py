@@ -2,17 +2,24 @@
 an arm dataset (paper §5.3).
 
 Input: a ``grasps.h5`` of ``augment`` / ``generate`` (its passing grasps; the hand is the
-table's ``hand`` attribute). Output: one HDF5 file (written atomically) with a group per
-object holding one row per (placement, grasp) — :class:`~sim.arm.evaluate.ArmGraspResult`'s
-fields as columns: ``grasp`` (row in the input table), ``placement``, ``object_pos`` /
-``object_quat_wxyz`` (the settled pose, world, m), ``passed``, ``failure`` and ``detail``
-(text), ``arm_q_rad`` (the arm at the grasp; NaN when not planned), ``hand_q_rad`` (the grasp's
-joints), ``times_s`` (K,) and ``trajectory_rad`` (K, n_arm) (the commanded piecewise-linear
-arm trajectory, NaN-padded), ``final_qpos`` (the whole scene's qpos — arm, hand, object —
-at the end of the simulation, in the composed model's order), ``ik_pos_err_m``,
+table's ``hand`` attribute). Two ways to get grasps to the arm: ``carried`` (the paper's: the
+dataset's grasps carried to every placement) and ``as-it-lies``
+(:mod:`dexaug.pipeline.rest_grasps`: grasps made for each resting pose with the dataset's
+demonstration — kept in its provenance — or the hand's manual workspace). Output: one HDF5
+file (written atomically) with a group per object holding one row per (placement, grasp) —
+:class:`~sim.arm.evaluate.ArmGraspResult`'s fields as columns: ``grasp`` (row in the input
+table when carried, index in its resting pose's set as it lies), ``placement``,
+``rest_index``, ``object_pos`` / ``object_quat_wxyz`` (the settled pose, world, m),
+``palm_pose`` (the grasp's frame_palm in the object frame: position m, quaternion wxyz),
+``passed``, ``failure`` and ``detail`` (text), ``arm_q_rad`` (the arm at the grasp; NaN when
+not planned), ``hand_q_rad`` (the grasp's joints), ``times_s`` (K,) and
+``trajectory_rad`` (K, n_arm) (the commanded piecewise-linear arm trajectory, NaN-padded),
+``final_qpos`` (the whole scene's qpos — arm, hand, object — at the end of the simulation, in
+the composed model's order), ``ik_pos_err_m``,
 ``ik_rot_err_rad``, ``displacement_m``, ``rotation_rad``, ``lifted_m``, ``plan_s``, ``sim_s``;
-attributes: arm, hand, object, placements, seed, input file, package versions, and the joint
-names of arm and hand.
+attributes: arm, hand, object, placements, seed, input file, ``grasps_from`` (carried or
+as-it-lies; for as-it-lies ``made_per_rest``: grasps generated and passed per resting pose),
+package versions, and the joint names of arm and hand.
 """
 
 from __future__ import annotations
@@ -27,8 +34,10 @@ import h5py
 import numpy as np
 
 from augment import dataset
+from dexaug.pipeline.rest_grasps import RestGrasps
 from sim.arm.config import load_arm_config
-from sim.arm.evaluate import ArmGraspResult, evaluate_on_arm
+from sim.arm.evaluate import ArmGraspResult, GraspSource, evaluate_on_arm
+from sim.demo import Demo, DemoError, demo_from_json
 from sim.errors import DexaugError
 from sim.grasp import Grasp
 from sim.hand.model import Hand
@@ -36,7 +45,10 @@ from sim.io import atomic_path
 from sim.versions import package_versions
 from sim.world.objects import load_object
 
-__all__ = ["ArmRunSummary", "run_arm"]
+__all__ = ["GRASP_SOURCES", "ArmRunSummary", "run_arm"]
+
+#: how grasps reach the arm (module docstring)
+GRASP_SOURCES = ("carried", "as-it-lies")
 
 
 @dataclass(frozen=True)
@@ -59,7 +71,7 @@ def _grasps(table: dataset.ObjectTable, limit: int | None) -> list[Grasp]:
                               table["hand_pose"][i]) for i in range(n)]
 
 
-def _columns(results: list[ArmGraspResult], grasps: list[Grasp], n_arm: int) -> dict[str, np.ndarray]:
+def _columns(results: list[ArmGraspResult], n_arm: int) -> dict[str, np.ndarray]:
     k = max((len(r.times_s) for r in results if r.times_s is not None), default=1)
     times = np.full((len(results), k), np.nan)
     traj = np.full((len(results), k, n_arm), np.nan)
@@ -74,25 +86,48 @@ def _columns(results: list[ArmGraspResult], grasps: list[Grasp], n_arm: int) -> 
             final[j] = r.final_qpos
     scalar = ("ik_pos_err_m", "ik_rot_err_rad", "displacement_m", "rotation_rad", "lifted_m",
               "plan_s", "sim_s")
-    cols = {"grasp": np.array([r.grasp for r in results]),
-            "placement": np.array([r.placement for r in results]),
+    cols = {"grasp": np.array([r.grasp for r in results], int),
+            "placement": np.array([r.placement for r in results], int),
+            "rest_index": np.array([r.rest_index for r in results], int),
             "object_pos": np.array([r.object_pos for r in results]).reshape(-1, 3),
             "object_quat_wxyz": np.array([r.object_quat_wxyz for r in results]).reshape(-1, 4),
+            "palm_pose": np.array([r.palm_pose for r in results]).reshape(-1, 7),
             "passed": np.array([r.passed for r in results], bool),
             "failure": np.array([(r.failure or "").encode() for r in results], dtype="S16"),
             "detail": np.array([r.detail.encode() for r in results], dtype=h5py.string_dtype()),
             "arm_q_rad": arm_q,
-            "hand_q_rad": np.array([grasps[r.grasp].joints for r in results]).reshape(len(results), -1),
+            "hand_q_rad": np.array([r.hand_q_rad for r in results]).reshape(len(results), -1),
             "times_s": times, "trajectory_rad": traj, "final_qpos": final}
     cols.update({c: np.array([getattr(r, c) for r in results], float) for c in scalar})
     return cols
 
 
+def _table_demo(path: Path, name: str, table: dataset.ObjectTable) -> Demo | None:
+    """The demonstration a table was augmented from (its ``demo`` provenance), None for a
+    table made without one; a clear error for a demo-made table that does not keep it."""
+    text = str(table.attrs.get("demo") or "")
+    if text:
+        try:
+            return demo_from_json(json.loads(text), f"{path} [{name}] attribute 'demo'")
+        except json.JSONDecodeError as exc:
+            raise DexaugError(f"{path}: table {name!r} attribute 'demo' is not JSON ({exc})") from None
+    if str(table.attrs.get("demo_source") or ""):
+        raise DexaugError(f"{path}: table {name!r} was augmented from a demonstration but does not "
+                          f"keep it (made before this version); augment it again to use "
+                          f"--grasps as-it-lies")
+    return None
+
+
 def run_arm(grasps_path: Path, arm_name: str, out: Path, *, placements: int, seed: int = 0,
             object_name: str | None = None, max_grasps: int | None = None,
-            progress: Callable[[str, int, int], None] | None = None) -> list[ArmRunSummary]:
+            progress: Callable[[str, int, int], None] | None = None,
+            grasps_from: str = "carried", workers: int = 1) -> list[ArmRunSummary]:
     """Evaluate the dataset's grasps on ``arm_name`` at ``placements`` placements per object
-    and write ``out`` (module docstring); one summary per object."""
+    and write ``out`` (module docstring); one summary per object. ``grasps_from``: one of
+    :data:`GRASP_SOURCES`; as it lies, each resting pose drawn gets ``max_grasps`` (default:
+    as many as the table holds) new grasps, made and validated on ``workers`` processes."""
+    if grasps_from not in GRASP_SOURCES:
+        raise DexaugError(f"grasps_from {grasps_from!r}: expected one of {GRASP_SOURCES}")
     tables = dataset.load(grasps_path)
     if object_name is not None:
         if object_name not in tables:
@@ -109,8 +144,16 @@ def run_arm(grasps_path: Path, arm_name: str, out: Path, *, placements: int, see
         grasps = _grasps(table, max_grasps)
         if not grasps:
             raise DexaugError(f"{grasps_path}: table {name!r} holds no grasp to put on an arm")
+        obj = load_object(name)
+        source: GraspSource = grasps
+        if grasps_from == "as-it-lies":
+            try:
+                demo = _table_demo(grasps_path, name, table)
+            except DemoError as exc:
+                raise DexaugError(str(exc)) from None
+            source = RestGrasps(hand, obj, demo, n=len(grasps), seed=seed, workers=workers)
         _, results = evaluate_on_arm(
-            arm, hand, load_object(name), grasps, placements=placements, seed=seed,
+            arm, hand, obj, source, placements=placements, seed=seed,
             progress=(lambda done, total, name=name: progress(name, done, total)) if progress else None)
         planned = [r for r in results if r.times_s is not None]
         seconds = sum(r.plan_s + r.sim_s for r in results)
@@ -118,16 +161,19 @@ def run_arm(grasps_path: Path, arm_name: str, out: Path, *, placements: int, see
             name, len(grasps), len(results), sum(r.passed for r in results),
             dict(Counter(r.failure for r in results if r.failure)), seconds,
             sum(r.plan_s + r.sim_s for r in planned) / len(planned) if planned else float("nan")))
-        groups[name] = (_columns(results, grasps, len(arm.joints)), hand)
+        made = source.made if isinstance(source, RestGrasps) else {}
+        groups[name] = (_columns(results, len(arm.joints)), hand, made)
     with atomic_path(out) as tmp, h5py.File(tmp, "w") as f:
         f.attrs["format"] = "dexaug-arm-grasps-1"
         f.attrs["versions"] = json.dumps(package_versions())
-        for name, (cols, hand) in groups.items():
+        for name, (cols, hand, made) in groups.items():
             g = f.create_group(name)
             for key, value in cols.items():
                 g.create_dataset(key, data=value)
             g.attrs.update({"arm": arm.name, "hand": hand.name, "object": name,
                             "placements": placements, "seed": seed, "input": str(grasps_path),
+                            "grasps_from": grasps_from,
+                            "made_per_rest": json.dumps({str(k): v for k, v in made.items()}),
                             "arm_joints": json.dumps(list(arm.joints)),
                             "hand_joints": json.dumps(list(hand.joint_names))})
     return summaries

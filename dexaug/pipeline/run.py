@@ -46,7 +46,7 @@ from augment.object_cloud import ObjectCloud, object_cloud
 from dexaug.pipeline.options import AugmentOptions, Progress, demo_dir, result_configs, run_key
 from dexaug.pipeline.report import write_report
 from dexaug.pipeline.summary import DemoSummary, demo_grasp_text, demo_verdict, finished
-from sim.demo import Demo
+from sim.demo import Demo, demo_to_json
 from sim.errors import DexaugError
 from sim.hand.model import Hand
 from sim.io import write_bytes_atomic
@@ -220,7 +220,10 @@ def write_result(folder: Path, c: Computed, opts: AugmentOptions, *, key: str,
     res, results, timings = c.fsg, c.validation, c.timings_s
     provenance = {"hand": c.hand, "demo_source": source, "seed": opts.seed,
                   "options": json.dumps(asdict(opts)), "run_key": key, **configs,
-                  "protocol": opts.validate or "none", "fsg_stopped": res.stopped}
+                  "protocol": opts.validate or "none", "fsg_stopped": res.stopped,
+                  # the demonstration itself, so a later stage (dexaug arm --as-it-lies) can
+                  # rebuild its workspace without the session file
+                  "demo": json.dumps(demo_to_json(demo)) if demo is not None else ""}
     table = dataset.from_fsg(res.grasps, c.joint_names, c.finger_names, results,
                              demo_id=demo.id if demo is not None else "", attrs=provenance,
                              split_rejected=results is not None)

@@ -33,15 +33,22 @@ from sim.validate.config import ValidateConfig
 from sim.validate.stages import GraspStages
 from sim.validate.validator import Validator
 from sim.world.objects import ObjectAsset
-from sim.world.resting import resting_poses
+from sim.world.resting import RestPose, resting_poses
 
-__all__ = ["ArmGraspResult", "evaluate_on_arm"]
+__all__ = ["ArmGraspResult", "GraspSource", "evaluate_on_arm"]
+
+#: hand-only grasps (object frame) for the arm: one sequence carried to every placement, or a
+#: function of (resting pose index, resting pose) giving grasps made for the object lying so
+GraspSource = Sequence[Grasp] | Callable[[int, RestPose], Sequence[Grasp]]
 
 
 @dataclass(frozen=True)
 class ArmGraspResult:
-    """One grasp at one placement: ``grasp`` index, ``placement`` (with the settled object
-    pose ``object_pos`` / ``object_quat_wxyz``), ``failure`` (module docstring) and ``detail``;
+    """One grasp at one placement: ``grasp`` index (in the sequence given, or in its resting
+    pose's set), ``placement`` and its ``rest_index`` (with the settled object pose
+    ``object_pos`` / ``object_quat_wxyz``), the grasp itself (``palm_pose``: frame_palm in
+    the object frame, position m + quaternion wxyz; ``hand_q_rad``), ``failure`` (module
+    docstring) and ``detail``;
     for planned grasps the whole-body configuration at the grasp (``arm_q_rad`` and the
     grasp's hand joints), the commanded trajectory (``times_s``, ``trajectory_rad`` (K, n_arm)),
     the scene's qpos at the end of the simulation (``final_qpos``: arm, hand and object),
@@ -50,8 +57,11 @@ class ArmGraspResult:
 
     grasp: int
     placement: int
+    rest_index: int
     object_pos: np.ndarray
     object_quat_wxyz: np.ndarray
+    palm_pose: np.ndarray
+    hand_q_rad: np.ndarray
     failure: str | None
     detail: str = ""
     arm_q_rad: np.ndarray | None = None
@@ -71,38 +81,49 @@ class ArmGraspResult:
         return self.failure is None
 
 
-def evaluate_on_arm(arm: ArmConfig, hand: Hand, obj: ObjectAsset, grasps: Sequence[Grasp], *,
+def evaluate_on_arm(arm: ArmConfig, hand: Hand, obj: ObjectAsset, grasps: GraspSource, *,
                     placements: int, seed: int = 0, config: ValidateConfig | None = None,
                     approach: ApproachSettings | None = None, timing: ArmTiming | None = None,
                     area_margin_m: float = 0.15, rest_index: int | None = None,
                     progress: Callable[[int, int], None] | None = None,
                     ) -> tuple[list[Placement], list[ArmGraspResult]]:
-    """Evaluate ``grasps`` of ``hand`` on ``obj`` carried by ``arm`` at ``placements`` seeded
-    placements on the table (its top minus ``area_margin_m`` at each edge); results in
-    placement-major order; ``rest_index`` places the object only in that resting pose.
-    ``progress(done, total)`` counts (placement, grasp) pairs."""
+    """Evaluate ``grasps`` (:data:`GraspSource`; a function is called once per resting pose
+    drawn) of ``hand`` on ``obj`` carried by ``arm`` at ``placements`` seeded placements on
+    the table (its top minus ``area_margin_m`` at each edge); results in placement-major order;
+    ``rest_index`` places the object only in that resting pose. ``progress(done, total)``
+    counts (placement, grasp) pairs (total known once every pose's grasps are)."""
     cfg = config or ValidateConfig.load()
     validator = Validator(hand, obj, cfg)
-    stages = [validator.stages(g) for g in grasps]
     scene = ArmScene(arm, hand, obj, contact=cfg.common.contact, servos=cfg.common.servos)
     table = scene.table
     (cx, cy), (hx, hy) = table.center_xy_m, table.half_size_xy_m
-    places = sample_placements(obj, resting_poses(obj), placements, seed=seed,
+    poses = resting_poses(obj)
+    places = sample_placements(obj, poses, placements, seed=seed,
                                area_x_m=(cx - hx + area_margin_m, cx + hx - area_margin_m),
                                area_y_m=(cy - hy + area_margin_m, cy + hy - area_margin_m),
                                top_z_m=table.top_z_m, rest_index=rest_index)
+    sets: dict[int, tuple[list[Grasp], list[GraspStages]]] = {}
+    for k in dict.fromkeys(p.rest_index for p in places):
+        gs = list(grasps(k, poses[k]) if callable(grasps) else grasps)
+        sets[k] = (gs, [validator.stages(g) for g in gs])
     limits = {"max_displacement_m": cfg.lift_drop.max_displacement_m,
               "max_rotation_rad": cfg.lift_drop.max_rotation_rad}
     out: list[ArmGraspResult] = []
-    total = len(places) * len(grasps)
+    total = sum(len(sets[p.rest_index][0]) for p in places)
     for p in places:
+        gs, stages = sets[p.rest_index]
+        if not gs:
+            continue
         settled = settle_object(scene, p.pos, p.quat_wxyz)
         obj_q = settled.qpos[scene.obj_qadr:scene.obj_qadr + 7].copy()
         pos, quat = obj_q[:3], obj_q[3:]
-        clear = table_clear(hand, grasps, pos, quat, top_z_m=table.top_z_m)
-        targets = palm_targets(grasps, pos, quat)
-        for i, g in enumerate(grasps):
-            base = {"grasp": i, "placement": p.index, "object_pos": pos, "object_quat_wxyz": quat}
+        clear = table_clear(hand, gs, pos, quat, top_z_m=table.top_z_m)
+        targets = palm_targets(gs, pos, quat)
+        for i, g in enumerate(gs):
+            base = {"grasp": i, "placement": p.index, "rest_index": p.rest_index,
+                    "object_pos": pos, "object_quat_wxyz": quat,
+                    "palm_pose": np.concatenate([g.palm_pos, g.palm_quat_wxyz]),
+                    "hand_q_rad": np.asarray(g.joints, float)}
             if not clear[i]:
                 out.append(ArmGraspResult(**base, failure="table",
                                           detail="the hand at the grasp is in the table"))

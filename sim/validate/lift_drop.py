@@ -24,29 +24,35 @@ from sim.validate.targets import GraspTargets
 from sim.world.contacts import contacts_between
 from sim.world.scene import Scene
 
-__all__ = ["Observer", "lift_drop"]
+__all__ = ["Observer", "lift_drop", "unit_down"]
 
 #: called with the phase name ("lift", "hold") after every chunk of steps, for diagnosis
 Observer = Callable[[str], None]
 
 
 def lift_drop(scene: Scene, hand: Hand, p: LiftDropParams, targets: GraspTargets,
-              result: ValidationResult, observe: Observer | None = None) -> Program:
+              result: ValidationResult, observe: Observer | None = None,
+              gravity_dir: np.ndarray | None = None) -> Program:
     """Lift, hold and drop the closed grasp in ``scene`` (a program, :mod:`sim.validate.program`);
     fills ``result`` (phases ``lift``, ``hold``, ``drop``, the worst drift, the verdict).
     ``observe`` sees the scene after every lift chunk (1/50 of the lift) and every hold chunk of
-    the same length; stepping in chunks changes nothing (MuJoCo steps the same either way)."""
+    the same length; stepping in chunks changes nothing (MuJoCo steps the same either way).
+    ``gravity_dir``: unit vector, world (= the object's frame: the validator places the object
+    at the origin unrotated), along which gravity pulls while the hand lifts against it; None is
+    −z, the object upright. A grasp meant for an object lying on its side is checked with
+    that pose's "down" (:mod:`sim.world.resting`), as an arm lifting it from the table loads it."""
     m, d = scene.model, scene.data
     ref_pos, ref_quat = relative_object_pose(scene)
     start = d.mocap_pos[scene.mocap_id].copy()
-    gravity = np.array([0.0, 0.0, -GRAVITY_MPS2])
+    down = unit_down(gravity_dir)
+    gravity = GRAVITY_MPS2 * down
     lift_steps = max(round(p.lift_time_s / m.opt.timestep), 1)
     chunk = max(lift_steps // 50, 1)
     ok = True
     for k in range(0, lift_steps, chunk):
         rise = p.lift_height_m * min(k + chunk, lift_steps) / lift_steps
         yield Advance(min(chunk, lift_steps - k), gravity=gravity if k == 0 else None,
-                      mocap_pos=start + np.array([0.0, 0.0, rise]))
+                      mocap_pos=start - rise * down)
         if observe is not None:
             observe("lift")
         disp, rot = drift(scene, ref_pos, ref_quat)
@@ -70,6 +76,17 @@ def lift_drop(scene: Scene, hand: Hand, p: LiftDropParams, targets: GraspTargets
         result.failure = Failure.SLIPPED
         return
     yield from _release(scene, hand, p, targets, ref_quat, result)
+
+
+def unit_down(gravity_dir: np.ndarray | None) -> np.ndarray:
+    """``gravity_dir`` as a unit 3-vector (None: −z); a clear error for anything else."""
+    if gravity_dir is None:
+        return np.array([0.0, 0.0, -1.0])
+    v = np.asarray(gravity_dir, float)
+    norm = float(np.linalg.norm(v)) if v.shape == (3,) else float("nan")
+    if not (np.isfinite(v).all() and norm > 1e-9):
+        raise ValueError(f"gravity_dir: expected a non-zero 3-vector, got {gravity_dir!r}")
+    return v / norm
 
 
 #: joint speed (rad/s or m/s) below which a hand counts as done opening

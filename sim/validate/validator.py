@@ -33,7 +33,7 @@ from sim.validate.batched import BatchRunner, ProgramRunner, validate_batched
 from sim.validate.config import PROTOCOLS, ValidateConfig
 from sim.validate.dgb import run_dgb
 from sim.validate.effort import actuator_effort
-from sim.validate.lift_drop import Observer, lift_drop
+from sim.validate.lift_drop import Observer, lift_drop, unit_down
 from sim.validate.program import Advance, Program, run_here
 from sim.validate.result import Failure, ValidationResult
 from sim.validate.six_dir import six_dir
@@ -211,14 +211,17 @@ class Validator:
 
     def validate(self, grasp: Grasp, protocol: str = "lift-drop", *,
                  squeeze_convention: str | None = None,
-                 observe: Observer | None = None) -> ValidationResult:
+                 observe: Observer | None = None,
+                 gravity_dir: np.ndarray | None = None) -> ValidationResult:
         """Validate one grasp; see the module docstring and DESIGN §5 for the protocols.
         ``squeeze_convention`` (dgb only) overrides ``[dgb] squeeze_convention``; ``observe``
         (lift-drop only, for :mod:`sim.validate.diagnose`) is called with "closed" once the
-        fingers have closed and settled, then through the lift and hold."""
+        fingers have closed and settled, then through the lift and hold; ``gravity_dir``
+        (lift-drop only; object frame, default −z): the way gravity pulls during the lift
+        (:func:`sim.validate.lift_drop.lift_drop`)."""
         if protocol == "dgb":
             return self._validate_dgb(grasp, squeeze_convention)
-        result, program = self.start(grasp, protocol, observe=observe)
+        result, program = self.start(grasp, protocol, observe=observe, gravity_dir=gravity_dir)
         if program is not None:
             run_here(self.scene(protocol), program)
         return result
@@ -227,7 +230,8 @@ class Validator:
                      nthread: int = 1, squeeze_convention: str | None = None,
                      progress: Callable[[int], None] | None = None,
                      backend: str = "mujoco", device: str = "cuda",
-                     nworld: int = 1024) -> list[ValidationResult]:
+                     nworld: int = 1024,
+                     gravity_dir: np.ndarray | None = None) -> list[ValidationResult]:
         """Validate ``grasps`` in input order, the results exactly :meth:`validate`'s.
 
         With ``nthread`` > 1, lift-drop and six-dir run up to :data:`BATCH_SIMS` grasps at once
@@ -238,7 +242,8 @@ class Validator:
         results are the same bit for bit. dgb always steps grasp by grasp.
         ``backend="warp"`` steps lift-drop and six-dir as ``nworld`` worlds of MuJoCo Warp on
         ``device`` instead (:mod:`sim.validate.warp_runner`; close to, not bit-identical with,
-        the C engine's results). ``progress(n_done)`` is called as grasps finish."""
+        the C engine's results). ``progress(n_done)`` is called as grasps finish;
+        ``gravity_dir`` as in :meth:`validate`."""
         if backend not in BACKENDS:
             raise ValueError(f"backend {backend!r}: expected one of {BACKENDS}")
         if backend != "mujoco" and protocol not in ("lift-drop", "six-dir"):
@@ -246,7 +251,8 @@ class Validator:
         if protocol not in ("lift-drop", "six-dir") or (backend == "mujoco" and nthread == 1):
             out = []
             for g in grasps:
-                out.append(self.validate(g, protocol, squeeze_convention=squeeze_convention))
+                out.append(self.validate(g, protocol, squeeze_convention=squeeze_convention,
+                                         gravity_dir=gravity_dir))
                 if progress is not None:
                     progress(len(out))
             return out
@@ -259,17 +265,23 @@ class Validator:
             else:
                 self._runners[key] = BatchRunner(self.scene(protocol), BATCH_SIMS, nthread)
         return validate_batched(self._runners[key], grasps,
-                                lambda g, view: self.start(g, protocol, scene=view), progress)
+                                lambda g, view: self.start(g, protocol, scene=view,
+                                                           gravity_dir=gravity_dir), progress)
 
     def start(self, grasp: Grasp, protocol: str, *, scene: Scene | None = None,
-              observe: Observer | None = None) -> tuple[ValidationResult, Program | None]:
+              observe: Observer | None = None, gravity_dir: np.ndarray | None = None,
+              ) -> tuple[ValidationResult, Program | None]:
         """Place ``grasp`` in the protocol's scene and decide what can be decided without
         simulating (penetration, no hand body near the object); the result so far and, when
         simulation must follow, the program that finishes it (:mod:`sim.validate.program`),
         from the scene's state as this call leaves it. ``scene`` (default: the protocol's
         scene) is what the program reads: a batch runner gives a view of its own simulation
-        here, whose state it has loaded from the protocol's scene. lift-drop and six-dir only.
+        here, whose state it has loaded from the protocol's scene. lift-drop and six-dir only;
+        ``gravity_dir`` as in :meth:`validate`.
         """
+        if gravity_dir is not None and protocol != "lift-drop":
+            raise ValueError(f"gravity_dir is lift-drop's; {protocol!r} pushes along fixed axes")
+        down = None if gravity_dir is None else unit_down(gravity_dir)
         if protocol not in ("lift-drop", "six-dir"):
             raise ValueError(f"protocol {protocol!r} has no program; expected lift-drop or six-dir")
         penetration = self.penetration_m(grasp, protocol)
@@ -288,10 +300,11 @@ class Validator:
             result.failure = Failure.NO_CONTACT
             return result, None
         self._start_closing(here, targets)
-        return result, self._protocol(scene or here, protocol, targets, result, observe)
+        return result, self._protocol(scene or here, protocol, targets, result, observe, down)
 
     def _protocol(self, scene: Scene, protocol: str, targets: GraspTargets,
-                  result: ValidationResult, observe: Observer | None) -> Program:
+                  result: ValidationResult, observe: Observer | None,
+                  gravity_dir: np.ndarray | None = None) -> Program:
         """Closing, contact measurement and the protocol's own phases, as one program."""
         yield from self._closing(scene, targets)
         self._measure_contacts(scene, result)
@@ -301,7 +314,8 @@ class Validator:
         if protocol == "lift-drop":
             if observe is not None:
                 observe("closed")
-            yield from lift_drop(scene, self.hand, self.config.lift_drop, targets, result, observe)
+            yield from lift_drop(scene, self.hand, self.config.lift_drop, targets, result, observe,
+                                 gravity_dir)
         else:
             yield from six_dir(scene, self.config.six_dir, result)
 
