@@ -30,6 +30,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from augment import dataset
+from dexaug.pipeline.arm_report import render_arm_result
 from dexaug.pipeline.options import AugmentOptions
 from dexaug.pipeline.rest_grasps import RestGrasps
 from dexaug.pipeline.run import augment_demo
@@ -41,7 +42,6 @@ from sim.grasp import Grasp
 from sim.hand.model import Hand
 from sim.validate.batch import default_workers
 from sim.world.objects import load_object
-from sim.world.render import render_scene, save_png
 from sim.world.resting import resting_poses
 
 DEMOS = Path(__file__).resolve().parents[1] / "recordings" / "demos"
@@ -52,18 +52,6 @@ HEADER = ("| mode | arm | object | grasps / placement | pairs | table-clear % | 
 
 def pct(k: int, n: int) -> str:
     return f"{100 * k / n:.1f}" if n else "–"
-
-
-def render_result(scene: ArmScene, result: ArmGraspResult, path: Path) -> None:
-    """The scene at the end of ``result``'s simulation (object lifted in the hand)."""
-    import mujoco
-
-    d = mujoco.MjData(scene.model)
-    d.qpos[:] = result.final_qpos
-    mujoco.mj_forward(scene.model, d)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    save_png(path, render_scene(scene.model, d, lookat=d.qpos[scene.obj_qadr:scene.obj_qadr + 3],
-                                distance_m=0.8, azimuth_deg=200.0, elevation_deg=-12.0))
 
 
 def row(mode: str, arm: str, name: str, res: Sequence[ArmGraspResult], placements: int,
@@ -126,7 +114,7 @@ def main() -> None:
                     wall = time.perf_counter() - t0
                     print(row(mode, arm, name, res, args.placements, wall, making_s), flush=True)
                     if args.images and (held_one := next((r for r in res if r.passed), None)):
-                        render_result(ArmScene(load_arm_config(arm), hand, obj), held_one,
+                        render_arm_result(ArmScene(load_arm_config(arm), hand, obj), held_one,
                                       args.images / f"{mode}_{arm}_{name}.png")
                     making_s = 0.0   # made once per object, shared by the next arm
             upright = resting_poses(obj).upright_index()

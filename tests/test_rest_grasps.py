@@ -30,6 +30,7 @@ from sim.transforms import quat_to_mat
 from sim.validate.config import GRAVITY_MPS2
 from sim.validate.validator import Validator
 from sim.world.objects import load_object
+from sim.world.render import gl_available
 from sim.world.resting import resting_poses
 from tests.conftest import needs_menagerie, needs_ycb
 
@@ -149,8 +150,11 @@ def test_arm_as_it_lies_makes_grasps_per_resting_pose(grasps_file: Path, tmp_pat
     common = [str(grasps_file), "--arm", "ur5e", "--placements", "3", "--max-grasps", "6",
               "--seed", "1", "--workers", "1"]
     assert main(["arm", *common, "--out", str(carried)]) == 0
-    assert main(["arm", *common, "--grasps", "as-it-lies", "--out", str(lies)]) == 0
+    report = tmp_path / "lies.html"
+    assert main(["arm", *common, "--grasps", "as-it-lies", "--out", str(lies),
+                 "--report", str(report)]) == 0
     c, s = _rows(carried), _rows(lies)
+    _check_report(report, s)
     assert s["attrs"]["grasps_from"] == "as-it-lies" and c["attrs"]["grasps_from"] == "carried"
     made = {int(k): v for k, v in json.loads(s["attrs"]["made_per_rest"]).items()}
     poses = resting_poses(load_object(CAN))
@@ -167,6 +171,20 @@ def test_arm_as_it_lies_makes_grasps_per_resting_pose(grasps_file: Path, tmp_pat
     # made for the pose, they clear the table far more often than grasps made upright
     table_share = [np.mean(r["failure"] == b"table") for r in (c, s)]
     assert table_share[1] < table_share[0], table_share
+
+
+def _check_report(report: Path, rows: dict[str, np.ndarray]) -> None:
+    """The report states the file's numbers and shows a held grasp per image."""
+    text = report.read_text()
+    held, n = int(rows["passed"].sum()), len(rows["passed"])
+    assert f"<th>placement × grasp pairs</th><td>{n}</td>" in text
+    assert f"<th>held</th><td>{held} (" in text if held else "<th>held</th><td>0</td>" in text
+    images = sorted((report.parent / f"{report.stem}_images").glob("*.png"))
+    if gl_available() is not None:
+        assert len(images) == min(held, 4) and all(i.name in text for i in images)
+        for image in images:                       # each pictured grasp is a held one
+            p, g = (int(x[1:]) for x in image.stem.split("_")[-2:])
+            assert rows["passed"][(rows["placement"] == p) & (rows["grasp"] == g)].all()
 
 
 def _dataset_palm_x(path: Path) -> np.ndarray:

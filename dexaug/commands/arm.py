@@ -44,6 +44,11 @@ def _arm_args(p: argparse.ArgumentParser) -> None:
                    help="processes making and validating grasps as they lie; default %(default)s")
     p.add_argument("--out", type=Path, default=Path("arm_grasps.h5"),
                    help="arm dataset to write (replaced atomically); default %(default)s")
+    p.add_argument("--report", type=Path, default=None, metavar="HTML",
+                   help="also write an HTML report (summary per object and images of held "
+                   "grasps, the paper's Fig. 12) here; default: none")
+    p.add_argument("--gallery", type=int, default=4,
+                   help="images of held grasps per object in the report; default %(default)s")
 
 
 @command("arm", _arm_args)
@@ -68,7 +73,8 @@ def arm_cmd(args: argparse.Namespace, console: Console) -> int:
         summaries = run_arm(args.dataset, args.arm, args.out, placements=args.placements,
                             seed=args.seed, object_name=args.object, max_grasps=args.max_grasps,
                             progress=lambda name, done, total: tick(f"{args.arm} {name}", done, total),
-                            grasps_from=args.grasps, workers=args.workers)
+                            grasps_from=args.grasps, workers=args.workers,
+                            report=args.report, gallery=args.gallery)
     t = Table(title=f"grasps on {args.arm}")
     for col in ("object", "grasps", "placement × grasp", "passed", "pass %", "failures",
                 "s per planned grasp"):
@@ -78,5 +84,5 @@ def arm_cmd(args: argparse.Namespace, console: Console) -> int:
         t.add_row(s.object, str(s.grasps), str(s.pairs), str(s.passed),
                   f"{100 * s.passed / s.pairs:.1f}", failures, f"{s.seconds_per_planned:.2f}")
     console.print(t)
-    console.print(f"wrote {args.out}")
+    console.print(f"wrote {args.out}" + (f" and {args.report}" if args.report else ""))
     return 0

@@ -34,9 +34,11 @@ import h5py
 import numpy as np
 
 from augment import dataset
+from dexaug.pipeline.arm_report import ArmReportPart, write_arm_report
 from dexaug.pipeline.rest_grasps import RestGrasps
 from sim.arm.config import load_arm_config
 from sim.arm.evaluate import ArmGraspResult, GraspSource, evaluate_on_arm
+from sim.arm.scene import ArmScene
 from sim.demo import Demo, DemoError, demo_from_json
 from sim.errors import DexaugError
 from sim.grasp import Grasp
@@ -121,11 +123,14 @@ def _table_demo(path: Path, name: str, table: dataset.ObjectTable) -> Demo | Non
 def run_arm(grasps_path: Path, arm_name: str, out: Path, *, placements: int, seed: int = 0,
             object_name: str | None = None, max_grasps: int | None = None,
             progress: Callable[[str, int, int], None] | None = None,
-            grasps_from: str = "carried", workers: int = 1) -> list[ArmRunSummary]:
+            grasps_from: str = "carried", workers: int = 1,
+            report: Path | None = None, gallery: int = 4) -> list[ArmRunSummary]:
     """Evaluate the dataset's grasps on ``arm_name`` at ``placements`` placements per object
     and write ``out`` (module docstring); one summary per object. ``grasps_from``: one of
     :data:`GRASP_SOURCES`; as it lies, each resting pose drawn gets ``max_grasps`` (default:
-    as many as the table holds) new grasps, made and validated on ``workers`` processes."""
+    as many as the table holds) new grasps, made and validated on ``workers`` processes.
+    ``report``: also write this HTML report (:mod:`dexaug.pipeline.arm_report`) with up to
+    ``gallery`` images of held grasps per object."""
     if grasps_from not in GRASP_SOURCES:
         raise DexaugError(f"grasps_from {grasps_from!r}: expected one of {GRASP_SOURCES}")
     tables = dataset.load(grasps_path)
@@ -135,7 +140,7 @@ def run_arm(grasps_path: Path, arm_name: str, out: Path, *, placements: int, see
                               f"(it has {sorted(tables)})")
         tables = {object_name: tables[object_name]}
     arm = load_arm_config(arm_name)
-    summaries, groups = [], {}
+    summaries, groups, parts = [], {}, []
     for name, table in tables.items():
         hand_name = str(table.attrs.get("hand") or "")
         if not hand_name:
@@ -163,6 +168,9 @@ def run_arm(grasps_path: Path, arm_name: str, out: Path, *, placements: int, see
             sum(r.plan_s + r.sim_s for r in planned) / len(planned) if planned else float("nan")))
         made = source.made if isinstance(source, RestGrasps) else {}
         groups[name] = (_columns(results, len(arm.joints)), hand, made)
+        if report is not None:
+            parts.append(ArmReportPart(name, ArmScene(arm, hand, obj), results, placements,
+                                       grasps_from, made))
     with atomic_path(out) as tmp, h5py.File(tmp, "w") as f:
         f.attrs["format"] = "dexaug-arm-grasps-1"
         f.attrs["versions"] = json.dumps(package_versions())
@@ -176,4 +184,6 @@ def run_arm(grasps_path: Path, arm_name: str, out: Path, *, placements: int, see
                             "made_per_rest": json.dumps({str(k): v for k, v in made.items()}),
                             "arm_joints": json.dumps(list(arm.joints)),
                             "hand_joints": json.dumps(list(hand.joint_names))})
+    if report is not None:
+        write_arm_report(report, arm.name, parts[0].scene.hand.name, parts, gallery=gallery)
     return summaries
