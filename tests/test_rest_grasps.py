@@ -21,8 +21,11 @@ from augment.fsg.table import TablePlane
 from augment.object_cloud import object_cloud
 from dexaug.cli import main
 from dexaug.pipeline.options import AugmentOptions
-from dexaug.pipeline.rest_grasps import rest_table_plane
+from dexaug.pipeline.rest_grasps import RestGrasps, rest_table_plane
 from dexaug.pipeline.run import augment_demo
+from sim.arm.config import load_arm_config
+from sim.arm.evaluate import evaluate_on_arm
+from sim.arm.plan import ApproachSettings
 from sim.demo import load_demo
 from sim.hand.model import Hand
 from sim.hand.reference_grasps import load_reference_grasps
@@ -203,3 +206,27 @@ def test_as_it_lies_without_the_demo_is_one_clear_error(grasps_file: Path, tmp_p
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "augment it again" in err and str(old) in err
     assert not (tmp_path / "x.h5").exists()
+
+
+def test_a_blocked_palm_approach_is_planned_from_above(shadow: Hand) -> None:
+    """Grasps of the can lying on its side, at three placements: planning that may also come
+    down from above plans every grasp the palm-normal approach plans, and more; the extra
+    ones came from above and still lift the can or fail in simulation, never in planning."""
+    obj = load_object(CAN)
+    side = next(k for k, p in enumerate(resting_poses(obj).poses) if not p.upright)
+    source = RestGrasps(shadow, obj, load_demo(DEMO), n=24, seed=0, workers=1)
+    runs = {}
+    for name, settings in (("palm", ApproachSettings(retreats=((1.0, 0.0),))),
+                           ("default", ApproachSettings())):
+        _, runs[name] = evaluate_on_arm(load_arm_config("ur5e"), shadow, obj, source,
+                                        placements=3, seed=3, rest_index=side, approach=settings)
+    planned = {k: {(r.placement, r.grasp) for r in v if r.times_s is not None}
+               for k, v in runs.items()}
+    assert planned["palm"] <= planned["default"]
+    extra = planned["default"] - planned["palm"]
+    assert extra, "no grasp needed another approach: the check could not fail here"
+    for r in runs["default"]:
+        if (r.placement, r.grasp) in extra:
+            assert r.retreat[2] > 0.5, r.retreat              # halfway up or straight up
+        elif r.retreat is not None:
+            assert abs(r.retreat @ np.array([0, 0, 1.0])) < 1.0

@@ -15,7 +15,8 @@ table when carried, index in its resting pose's set as it lies), ``placement``,
 not planned), ``hand_q_rad`` (the grasp's joints), ``times_s`` (K,) and
 ``trajectory_rad`` (K, n_arm) (the commanded piecewise-linear arm trajectory, NaN-padded),
 ``final_qpos`` (the whole scene's qpos — arm, hand, object — at the end of the simulation, in
-the composed model's order), ``ik_pos_err_m``,
+the composed model's order), ``retreat`` (unit vector, world: from the grasp to the pregrasp
+it was approached from), ``ik_pos_err_m``,
 ``ik_rot_err_rad``, ``displacement_m``, ``rotation_rad``, ``lifted_m``, ``plan_s``, ``sim_s``;
 attributes: arm, hand, object, placements, seed, input file, ``grasps_from`` (carried or
 as-it-lies; for as-it-lies ``made_per_rest``: grasps generated and passed per resting pose),
@@ -80,12 +81,14 @@ def _columns(results: list[ArmGraspResult], n_arm: int) -> dict[str, np.ndarray]
     arm_q = np.full((len(results), n_arm), np.nan)
     nq = max((len(r.final_qpos) for r in results if r.final_qpos is not None), default=1)
     final = np.full((len(results), nq), np.nan)
+    retreat = np.full((len(results), 3), np.nan)
     for j, r in enumerate(results):
         if r.times_s is not None:
             times[j, :len(r.times_s)] = r.times_s
             traj[j, :len(r.times_s)] = r.trajectory_rad
             arm_q[j] = r.arm_q_rad
             final[j] = r.final_qpos
+            retreat[j] = r.retreat
     scalar = ("ik_pos_err_m", "ik_rot_err_rad", "displacement_m", "rotation_rad", "lifted_m",
               "plan_s", "sim_s")
     cols = {"grasp": np.array([r.grasp for r in results], int),
@@ -99,7 +102,7 @@ def _columns(results: list[ArmGraspResult], n_arm: int) -> dict[str, np.ndarray]
             "detail": np.array([r.detail.encode() for r in results], dtype=h5py.string_dtype()),
             "arm_q_rad": arm_q,
             "hand_q_rad": np.array([r.hand_q_rad for r in results]).reshape(len(results), -1),
-            "times_s": times, "trajectory_rad": traj, "final_qpos": final}
+            "times_s": times, "trajectory_rad": traj, "final_qpos": final, "retreat": retreat}
     cols.update({c: np.array([getattr(r, c) for r in results], float) for c in scalar})
     return cols
 

@@ -51,7 +51,8 @@ class ArmGraspResult:
     docstring) and ``detail``;
     for planned grasps the whole-body configuration at the grasp (``arm_q_rad`` and the
     grasp's hand joints), the commanded trajectory (``times_s``, ``trajectory_rad`` (K, n_arm)),
-    the scene's qpos at the end of the simulation (``final_qpos``: arm, hand and object),
+    the scene's qpos at the end of the simulation (``final_qpos``: arm, hand and object), the
+    unit direction (world) from the grasp to the pregrasp it was approached from (``retreat``),
     the IK errors at the grasp, the simulated pose change (m, rad) and rise (m); seconds spent
     planning and simulating."""
 
@@ -68,6 +69,7 @@ class ArmGraspResult:
     times_s: np.ndarray | None = None
     trajectory_rad: np.ndarray | None = None
     final_qpos: np.ndarray | None = None
+    retreat: np.ndarray | None = None
     ik_pos_err_m: float = float("nan")
     ik_rot_err_rad: float = float("nan")
     displacement_m: float = float("nan")
@@ -153,7 +155,7 @@ def _plan_and_simulate(scene: ArmScene, settled: mujoco.MjData, palm_pos: np.nda
     return ArmGraspResult(
         **base, failure=sim.failure, detail="" if sim.passed else _sim_detail(sim),
         arm_q_rad=plan.approach[-1], times_s=sim.times_s, trajectory_rad=sim.arm_q_rad,
-        final_qpos=sim.final_qpos,
+        final_qpos=sim.final_qpos, retreat=plan.retreat,
         ik_pos_err_m=at_grasp.pos_err_m, ik_rot_err_rad=at_grasp.rot_err_rad,
         displacement_m=sim.displacement_m, rotation_rad=sim.rotation_rad, lifted_m=sim.lifted_m,
         plan_s=plan_s, sim_s=time.perf_counter() - t0)

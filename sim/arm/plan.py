@@ -4,9 +4,13 @@ the lift, and the collision checks of the path between them.
 The hand reaches a grasp the way a person's does: it comes to a pregrasp ``approach_m`` behind
 the palm (along frame_palm −y, the palm normal pointing away from the object), with the fingers
 at the grasp's pregrasp joints, then slides straight in along +y; after the fingers close it
-lifts straight up. Each waypoint is a whole-body IK solve (:func:`~sim.arm.ik.solve_palm_ik`)
-seeded by the one before, so consecutive configurations stay on one IK branch; the path from
-the arm's home to the pregrasp is a straight line in joint space. A plan fails with a reason:
+lifts straight up. When that way is blocked or out of reach (a palm facing sideways near the
+table retreats along the table top, and its pregrasp may lie beyond the arm's reach), the
+pregrasp is tried between the palm normal and straight up, then straight up (``retreats``): a
+person coming down onto an object lying on a table does the same. Each waypoint is a
+whole-body IK solve (:func:`~sim.arm.ik.solve_palm_ik`) seeded by the one before, so
+consecutive configurations stay on one IK branch; the path from the arm's home to the
+pregrasp is a straight line in joint space. A plan fails with a reason:
 ``unreachable`` (a waypoint's IK misses its pose by more than the tolerances) or ``collision``
 (a configuration along the way, sampled every ``check_step_rad`` of joint motion, brings the
 arm or the hand within ``min_clearance_m`` of the table). Units: metres, radians, seconds.
@@ -14,6 +18,7 @@ arm or the hand within ``min_clearance_m`` of the table). Units: metres, radians
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 from itertools import pairwise
@@ -36,6 +41,10 @@ class ApproachSettings:
     table every sampled configuration keeps (negative allows that much penetration)."""
 
     approach_m: float = 0.10
+    #: directions to the pregrasp tried in order, as weights of (palm −y, world +z) normalised:
+    #: behind the palm, halfway to straight up, straight up; one closer than 10° to a direction
+    #: already tried is skipped
+    retreats: tuple[tuple[float, float], ...] = ((1.0, 0.0), (1.0, 1.0), (0.0, 1.0))
     approach_waypoints: int = 5
     lift_m: float = 0.10
     check_step_rad: float = 0.05
@@ -46,7 +55,8 @@ class ApproachSettings:
 class ArmPlan:
     """The arm joints (config order) at home, pregrasp, along the approach (last = the grasp)
     and at the lift top, or ``failure`` (``unreachable`` / ``collision``) with ``detail``;
-    ``ik`` holds every solve (its errors and times); ``time_s`` the planning wall time."""
+    ``retreat`` the unit direction (world) from the grasp to the pregrasp; ``ik`` holds every
+    solve (its errors and times); ``time_s`` the planning wall time (all directions tried)."""
 
     failure: str | None
     detail: str
@@ -56,6 +66,7 @@ class ArmPlan:
     lift: np.ndarray | None = None
     ik: tuple[IKResult, ...] = ()
     time_s: float = 0.0
+    retreat: np.ndarray | None = None
 
 
 def _object_clearance_m(scene: ArmScene, qpos: np.ndarray, cap_m: float = 0.05) -> float:
@@ -94,28 +105,57 @@ def _margin(ik: IKSettings | None) -> float:
     return max(s.collision_min_distance_m, s.hand_min_distance_m)
 
 
+def _retreats(normal: np.ndarray, s: ApproachSettings) -> list[np.ndarray]:
+    """The unit directions to try for the pregrasp (``s.retreats``), near-duplicates dropped."""
+    out: list[np.ndarray] = []
+    for w_palm, w_up in s.retreats:
+        d = -w_palm * normal + w_up * np.array([0.0, 0.0, 1.0])
+        norm = float(np.linalg.norm(d))
+        if norm < 1e-9:
+            continue
+        d = d / norm
+        if all(float(d @ e) < np.cos(np.radians(10.0)) for e in out):
+            out.append(d)
+    return out
+
+
 def plan_grasp(scene: ArmScene, palm_pos_m: np.ndarray, palm_quat_wxyz: np.ndarray,
                pregrasp_q: np.ndarray, grasp_q: np.ndarray, obj_qpos: np.ndarray, *,
                settings: ApproachSettings | None = None, ik: IKSettings | None = None) -> ArmPlan:
     """Plan the approach to frame_palm at (``palm_pos_m``, ``palm_quat_wxyz``) in the world,
     the fingers at ``pregrasp_q`` on the way and ``grasp_q`` at the grasp (module docstring);
     ``obj_qpos`` (7,) is the settled object's free-joint pose, which the way to the pregrasp
-    must not pass through, nor the approach before its last waypoint (which ends in contact)."""
+    must not pass through, nor the approach before its last waypoint (which ends in contact).
+    The first direction that plans wins; when none does, the failure is the palm normal's."""
     s = settings or ApproachSettings()
     t0 = time.perf_counter()
-    home = scene.arm.home_rad.copy()
-    pos = np.asarray(palm_pos_m, float)
     normal = quat_to_mat(np.asarray(palm_quat_wxyz, float))[:, 1]   # frame_palm +y, toward the object
+    first: ArmPlan | None = None
+    for retreat in _retreats(normal, s):
+        plan = _plan_along(scene, np.asarray(palm_pos_m, float), palm_quat_wxyz, retreat,
+                           pregrasp_q, grasp_q, obj_qpos, s, ik)
+        if plan.failure is None:
+            return dataclasses.replace(plan, time_s=time.perf_counter() - t0)
+        first = first or plan
+    assert first is not None
+    return dataclasses.replace(first, time_s=time.perf_counter() - t0)
+
+
+def _plan_along(scene: ArmScene, pos: np.ndarray, palm_quat_wxyz: np.ndarray,
+                retreat: np.ndarray, pregrasp_q: np.ndarray, grasp_q: np.ndarray,
+                obj_qpos: np.ndarray, s: ApproachSettings, ik: IKSettings | None) -> ArmPlan:
+    """:func:`plan_grasp` with the pregrasp ``s.approach_m`` along ``retreat`` from the grasp."""
+    home = scene.arm.home_rad.copy()
     fractions = np.linspace(0.0, 1.0, s.approach_waypoints + 1)
     solves: list[IKResult] = []
 
     def fail(reason: str, detail: str) -> ArmPlan:
-        return ArmPlan(reason, detail, home, ik=tuple(solves), time_s=time.perf_counter() - t0)
+        return ArmPlan(reason, detail, home, ik=tuple(solves), retreat=retreat)
 
     q = scene.qpos(home, pregrasp_q)
     path = []
     for f in fractions:
-        target = pos - (1.0 - f) * s.approach_m * normal
+        target = pos + (1.0 - f) * s.approach_m * retreat
         r = solve_palm_ik(scene, target, palm_quat_wxyz, pregrasp_q if f < 1.0 else grasp_q,
                           q_start=q, settings=ik)
         solves.append(r)
@@ -150,4 +190,4 @@ def plan_grasp(scene: ArmScene, palm_pos_m: np.ndarray, palm_quat_wxyz: np.ndarr
     if not r.reachable:
         return fail("unreachable", f"IK misses the lift by {r.pos_err_m * 1e3:.1f} mm")
     return ArmPlan(None, "", home, approach[0], approach, r.arm_q_rad, tuple(solves),
-                   time.perf_counter() - t0)
+                   retreat=retreat)
