@@ -37,32 +37,77 @@ log = logging.getLogger(__name__)
 
 
 def palm_cloud_image(object_points: np.ndarray, palm_positions: np.ndarray,
-                     size_px: int = 360) -> np.ndarray:
-    """RGB image: top (x–y) and side (x–z) views of the object points (grey) and the palm
-    positions (red), same metric scale in both, object frame, axes labelled."""
+                     size_px: int = 360, *, demo_palm: np.ndarray | None = None,
+                     table: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """RGB image: top (x–y) and side (x–z) views of the object points (grey), the palm
+    positions (red), the demonstration's palm (green diamond) and the table plane (blue line,
+    ``table`` = (point, unit normal)), same metric scale in both, object frame: each panel has
+    its two axes drawn from the object's origin and labelled, a 5 cm scale bar and a legend."""
     views = (("top  x-y", (0, 1)), ("side  x-z", (0, 2)))
-    allp = np.vstack([object_points, palm_positions]) if len(palm_positions) else object_points
+    extra = [p for p in (demo_palm,) if p is not None]
+    allp = np.vstack([object_points, np.reshape(palm_positions, (-1, 3)),
+                      *[np.reshape(e, (1, 3)) for e in extra]])
     centre = 0.5 * (allp.min(axis=0) + allp.max(axis=0))
     half = 0.55 * float(np.max(allp.max(axis=0) - allp.min(axis=0))) or 0.1
+    names = "xyz"
     panels = []
     for title, (a, b) in views:
         img = np.full((size_px, size_px, 3), 255, np.uint8)
 
         def px(p: np.ndarray, a: int = a, b: int = b) -> np.ndarray:
+            p = np.reshape(p, (-1, 3))
             u = (p[:, a] - centre[a]) / half * 0.5 + 0.5
             v = 0.5 - (p[:, b] - centre[b]) / half * 0.5
             return np.round(np.column_stack([u, v]) * (size_px - 1)).astype(int)
 
+        if table is not None:
+            _table_line(img, table, a, b, centre, half, size_px)
         for u, v in px(object_points):
             cv2.circle(img, (int(u), int(v)), 1, (170, 170, 170), -1)
         for u, v in px(palm_positions):
             cv2.circle(img, (int(u), int(v)), 3, (220, 40, 40), -1)
-        cv2.putText(img, title, (8, 20), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 1)
+        if demo_palm is not None:
+            (u, v), = px(demo_palm)
+            cv2.drawMarker(img, (int(u), int(v)), (0, 150, 60), cv2.MARKER_DIAMOND, 16, 3)
+        (ou, ov), = px(np.zeros(3))
+        arrow = int(0.25 * size_px)
+        for axis, (du, dv) in ((a, (arrow, 0)), (b, (0, -arrow))):
+            cv2.arrowedLine(img, (int(ou), int(ov)), (int(ou + du), int(ov + dv)), (40, 40, 40),
+                            1, tipLength=0.08)
+            cv2.putText(img, names[axis], (int(ou + du) + 4, int(ov + dv) + 4),
+                        cv2.FONT_HERSHEY_SIMPLEX, 0.45, (40, 40, 40), 1)
+        cv2.putText(img, title + " (object frame)", (8, 20), cv2.FONT_HERSHEY_SIMPLEX, 0.5,
+                    (0, 0, 0), 1)
         bar = 0.05 / (2 * half) * (size_px - 1)   # a 5 cm scale bar
         cv2.line(img, (10, size_px - 12), (10 + int(bar), size_px - 12), (0, 0, 0), 2)
         cv2.putText(img, "5 cm", (12, size_px - 18), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1)
         panels.append(img)
-    return np.hstack(panels)
+    legend = np.full((24, 2 * size_px, 3), 255, np.uint8)
+    cv2.putText(legend, "grey: object   red: palms of kept grasps   green: demo palm   "
+                "blue: table", (8, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1)
+    return np.vstack([np.hstack(panels), legend])
+
+
+def _table_line(img: np.ndarray, table: tuple[np.ndarray, np.ndarray], a: int, b: int,
+                centre: np.ndarray, half: float, size_px: int) -> None:
+    """The table plane's trace in the (a, b) view: where it cuts the plane through the view's
+    centre along the third axis; nothing when the plane is (nearly) parallel to the view."""
+    point, normal = (np.asarray(x, float) for x in table)
+    c = 3 - a - b
+    rest = float(normal @ point) - normal[c] * centre[c]   # n_a·u + n_b·v = rest
+    span = np.array([-1.0, 1.0]) * 2 * half
+    if abs(normal[b]) >= abs(normal[a]) and abs(normal[b]) > 1e-6:
+        us = centre[a] + span
+        vs = (rest - normal[a] * us) / normal[b]
+    elif abs(normal[a]) > 1e-6:
+        vs = centre[b] + span
+        us = (rest - normal[b] * vs) / normal[a]
+    else:
+        return
+    pts = [(round(((u - centre[a]) / half * 0.5 + 0.5) * (size_px - 1)),
+            round((0.5 - (v - centre[b]) / half * 0.5) * (size_px - 1)))
+           for u, v in zip(us, vs, strict=True)]
+    cv2.line(img, pts[0], pts[1], (60, 90, 220), 2)
 
 
 def _render(hand: Hand, obj: ObjectAsset, grasps: list[Grasp], folder: Path,
@@ -72,7 +117,7 @@ def _render(hand: Hand, obj: ObjectAsset, grasps: list[Grasp], folder: Path,
     validator = Validator(hand, obj)
     out = []
     for g, name in zip(grasps, names, strict=True):
-        save_png(folder / name, validator.render(g, width=320, height=240))
+        save_png(folder / name, validator.render(g, width=480, height=360))
         out.append(name)
     return out
 
@@ -84,16 +129,23 @@ def write_report(folder: Path, demo: Demo, hand: Hand, obj: ObjectAsset, table: 
     from sim.grasp import Grasp
 
     pose = table["palm_pose"]
-    save_png(folder / "palm_cloud.png", palm_cloud_image(np.asarray(object_points), pose[:, :3]))
-    images: list[str] = []
+    plane = (None if demo.table is None
+             else (np.asarray(demo.table["point_m"]), np.asarray(demo.table["normal"])))
+    save_png(folder / "palm_cloud.png",
+             palm_cloud_image(np.asarray(object_points), pose[:, :3],
+                              demo_palm=np.asarray(demo.palm_pos_m), table=plane))
+    images: list[tuple[str, str]] = []
     note = ""
     if gl_available() is not None:
         order = np.argsort(-table["sim_epsilon"] if np.isfinite(table["sim_epsilon"]).any()
                            else -table["gws"])[:gallery]
         kept = [Grasp.from_arrays(pose[i, :3], pose[i, 3:], table["hand_pose"][i])
                 for i in order]
-        images = _render(hand, obj, [demo.grasp, *kept], folder,
-                         ["demo.png", *[f"grasp_{k:02d}.png" for k in range(len(kept))]])
+        names = _render(hand, obj, [demo.grasp, *kept], folder,
+                        ["demo.png", *[f"grasp_{k:02d}.png" for k in range(len(kept))]])
+        captions = [f"demonstration: {demo_grasp_text(summary.demo_grasp)}",
+                    *[_caption(table, int(i), k) for k, i in enumerate(order)]]
+        images = list(zip(names, captions, strict=True))
     else:
         note = "<p><em>No offscreen OpenGL on this machine: grasp images were not rendered.</em></p>"
     doc = _html(demo, summary, images, note)
@@ -102,7 +154,21 @@ def write_report(folder: Path, demo: Demo, hand: Hand, obj: ObjectAsset, table: 
     return path
 
 
-def _html(demo: Demo, s: DemoSummary, images: list[str], note: str) -> str:
+def _caption(table: ObjectTable, i: int, rank: int) -> str:
+    """What a gallery image shows: its rank, row, fingers and the simulated numbers."""
+    cols = table.columns
+    used = cols.get("fingers_used")
+    fingers = ([f for f, on in zip(table.finger_names, used[i], strict=True) if on]
+               if used is not None else [])
+    parts = [f"#{rank + 1} (row {i})", ", ".join(fingers) or "fingers ?"]
+    if "sim_epsilon" in cols and np.isfinite(cols["sim_epsilon"][i]):
+        parts.append(f"simulated ε {float(cols['sim_epsilon'][i]):.3g}")
+    if "displacement_m" in cols and np.isfinite(cols["displacement_m"][i]):
+        parts.append(f"moved {1e3 * float(cols['displacement_m'][i]):.1f} mm in the lift")
+    return "; ".join(parts)
+
+
+def _html(demo: Demo, s: DemoSummary, images: list[tuple[str, str]], note: str) -> str:
     e = html.escape
     rows = [("object", s.object), ("hand", s.hand), ("demo", f"{demo.id} ({demo.how}, fingers "
             f"{', '.join(demo.fingers) or '—'})"), ("source", s.source),
@@ -117,13 +183,16 @@ def _html(demo: Demo, s: DemoSummary, images: list[str], note: str) -> str:
     rows += [(f"time: {k} (s)", f"{v:.2f}") for k, v in s.timings_s.items()]
     table = "\n".join(f"<tr><th>{e(str(k))}</th><td id='m-{e(_slug(str(k)))}'>{e(str(v))}</td></tr>"
                       for k, v in rows)
-    demo_img = "<img src='demo.png' alt='demo grasp'>" if "demo.png" in images else ""
-    gallery = "".join(f"<img src='{e(n)}' alt='{e(n)}'>" for n in images if n != "demo.png")
+    figures = {n: (f"<figure><img src='{e(n)}' alt='{e(c)}'><figcaption>{e(c)}</figcaption>"
+                   f"</figure>") for n, c in images}
+    demo_img = figures.get("demo.png", "")
+    gallery = "".join(f for n, f in figures.items() if n != "demo.png")
     return f"""<!doctype html>
 <html><head><meta charset="utf-8"><title>dexaug report: {e(s.demo_id)}</title>
 <style>body{{font-family:sans-serif;margin:2em;max-width:1100px}}
 table{{border-collapse:collapse}}th,td{{border:1px solid #ccc;padding:4px 8px;text-align:left}}
-img{{margin:4px;border:1px solid #ddd}}</style></head>
+img{{border:1px solid #ddd}}figure{{display:inline-block;margin:6px;max-width:480px}}
+figcaption{{font-size:0.85em}}</style></head>
 <body><h1>Augmentation of {e(s.demo_id)}</h1>
 <h2>Demonstration</h2>{demo_img}{note}
 <p id="demo-grasp">Demonstration grasp: {e(demo_grasp_text(s.demo_grasp))}</p>

@@ -52,6 +52,12 @@ BACKENDS = ("mujoco", "warp")
 BATCH_SIMS = 16
 
 
+#: hand geoms within this distance (m) of the object's centre are framed by :meth:`Validator.render`
+FRAME_HAND_M = 0.12
+#: the background of :meth:`Validator.render`'s images (light grey: prints, shows dark hands)
+RENDER_BACKGROUND_RGB = (236, 238, 242)
+
+
 class Validator:
     """Validates grasps of one hand on one object; owns one scene per protocol (built lazily)."""
 
@@ -351,9 +357,14 @@ class Validator:
             out[finger.name] = local.mean(axis=0)
         return out
 
-    def render(self, grasp: Grasp, width: int = 640, height: int = 480) -> np.ndarray:
-        """RGB image of the grasp after closing (lift-drop scene), contacts marked."""
-        from sim.world.render import render_scene
+    def render(self, grasp: Grasp, width: int = 640, height: int = 480, *,
+               geom_ids: list[np.ndarray] | None = None) -> np.ndarray:
+        """RGB image of the grasp after closing (lift-drop scene), contacts marked, on a light
+        background; the camera frames the bounding boxes of the object's geoms and of the hand
+        geoms within ``FRAME_HAND_M`` of it, so a small object is not lost beside a large hand
+        and the hand near it is not cropped (the forearm may leave the frame). ``geom_ids``: see
+        :func:`sim.world.render.render_scene`."""
+        from sim.world.render import frame_points, geom_box_corners, render_scene
 
         q = self.hand.check_q(grasp.joints, "grasp joints")
         scene = self.scene("lift-drop")
@@ -361,5 +372,13 @@ class Validator:
         targets = self.derive_targets(scene, q)
         if targets.n_bodies_near:
             self._close(scene, targets)
-        obj_pos, _ = scene.object_pose()
-        return render_scene(scene.model, scene.data, lookat=obj_pos, width=width, height=height)
+        m, d = scene.model, scene.data
+        corners = geom_box_corners(m, d, np.flatnonzero(scene.obj_geom_mask))
+        centre = corners.mean(axis=0) if len(corners) else scene.object_pose()[0]
+        hand = np.flatnonzero(scene.hand_geom_mask)
+        near = hand[np.linalg.norm(d.geom_xpos[hand] - centre, axis=1) < FRAME_HAND_M]
+        lookat, distance = frame_points(
+            np.vstack([corners, geom_box_corners(m, d, near), centre[None]]),
+            fovy_deg=float(m.vis.global_.fovy), margin=1.0)
+        return render_scene(m, d, lookat=lookat, distance_m=distance, width=width, height=height,
+                            background_rgb=RENDER_BACKGROUND_RGB, geom_ids=geom_ids)

@@ -6,6 +6,7 @@ Rendering needs an OpenGL backend: ``MUJOCO_GL=egl`` (GPU or Mesa's EGL) or ``os
 
 from __future__ import annotations
 
+import math
 import os
 from functools import cache
 from typing import TYPE_CHECKING
@@ -60,9 +61,15 @@ def select_gl_backend() -> str:
 def render_scene(model: mujoco.MjModel, data: mujoco.MjData, *, lookat: np.ndarray,
                  distance_m: float = 0.35, azimuth_deg: float = 135.0,
                  elevation_deg: float = -25.0, width: int = 640, height: int = 480,
-                 show_contacts: bool = True) -> np.ndarray:
+                 show_contacts: bool = True,
+                 background_rgb: tuple[int, int, int] | None = None,
+                 geom_ids: list[np.ndarray] | None = None) -> np.ndarray:
     """RGB image (H, W, 3) uint8 of the current state from a free camera aimed at ``lookat``.
-    Contact points are drawn by MuJoCo when ``show_contacts``."""
+    Contact points are drawn by MuJoCo when ``show_contacts``. ``background_rgb`` fills the
+    pixels no geom covers (a scene without a skybox renders them black, which hides dark
+    hands in print); it costs a second, segmentation pass, whose per-pixel geom ids (H, W;
+    −1 where nothing is drawn, −2 on what is not a geom) are appended to ``geom_ids`` when a
+    list is given."""
     import mujoco  # deferred: MUJOCO_GL must be chosen before MuJoCo's first import
     cam = mujoco.MjvCamera()
     cam.type = mujoco.mjtCamera.mjCAMERA_FREE
@@ -77,7 +84,40 @@ def render_scene(model: mujoco.MjModel, data: mujoco.MjData, *, lookat: np.ndarr
     model.vis.map.force = 0.002  # metres of arrow per newton
     with mujoco.Renderer(model, height, width) as renderer:
         renderer.update_scene(data, cam, scene_option=opt)
-        return renderer.render().copy()
+        rgb = renderer.render().copy()
+        if background_rgb is not None or geom_ids is not None:
+            renderer.enable_segmentation_rendering()
+            seg = renderer.render()
+            # −1: nothing (background); −2: something that is not a geom (a skin, a decoration)
+            ids = np.where(seg[..., 0] < 0, -1,
+                           np.where(seg[..., 1] == int(mujoco.mjtObj.mjOBJ_GEOM), seg[..., 0], -2))
+            if background_rgb is not None:
+                rgb[seg[..., 0] < 0] = background_rgb
+            if geom_ids is not None:
+                geom_ids.append(ids)
+        return rgb
+
+
+def frame_points(points_m: np.ndarray, fovy_deg: float = 45.0,
+                 margin: float = 1.15) -> tuple[np.ndarray, float]:
+    """Where a camera looks and how far back it stands (m) so that every one of ``points_m``
+    (N, 3, world) is in view from any direction: the centre of their bounding box, and the
+    radius of the sphere around it that holds them over sin(fovy / 2), times ``margin``."""
+    pts = np.asarray(points_m, float).reshape(-1, 3)
+    centre = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+    radius = float(np.linalg.norm(pts - centre, axis=1).max(initial=0.0)) or 0.05
+    return centre, margin * radius / math.sin(math.radians(fovy_deg) / 2)
+
+
+def geom_box_corners(model: mujoco.MjModel, data: mujoco.MjData, geoms: np.ndarray) -> np.ndarray:
+    """World corners (8·G, 3) of the bounding boxes of ``geoms`` (ids) in their current pose."""
+    signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+    out = []
+    for g in np.asarray(geoms, int):
+        centre, half = model.geom_aabb[g, :3], model.geom_aabb[g, 3:]
+        local = centre + signs * half
+        out.append(data.geom_xpos[g] + local @ data.geom_xmat[g].reshape(3, 3).T)
+    return np.vstack(out) if out else np.zeros((0, 3))
 
 
 def save_png(path: str | os.PathLike, rgb: np.ndarray) -> None:
