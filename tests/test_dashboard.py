@@ -5,8 +5,10 @@ its reason; "Augment" on the dice demo runs the real pipeline (small options) wi
 the page; the numbers the page then shows equal ``summary.json`` and the dataset, the demo
 grasp's own verdict is shown beside them as the report states it, and the report it links
 states the same passed count; a restarted dashboard shows the finished result
-directly. A screenshot goes to ``tests/artifacts/``. The queue and API tests use fake jobs (no pipeline):
-order, progress, a dexaug error, an unexpected error, bad requests.
+directly. "Put on arm" on a finished result runs the real arm stage as a job and the page, then
+a restarted dashboard's catalog, shows the arm file's own numbers. A screenshot goes to
+``tests/artifacts/``. The queue and API tests use fake jobs (no pipeline): order, progress, a
+dexaug error, an unexpected error, bad requests, an arm job's live progress and failure.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import dataclasses
 import itertools
 import json
 import shutil
+import threading
 import time
 import urllib.error
 import urllib.request
@@ -29,6 +32,7 @@ from sim.errors import DexaugError
 from sim.paths import REPO_ROOT
 from tests.browser import artifact_path, new_page
 from tests.conftest import needs_menagerie, needs_ycb
+from tests.fake_results import arm_file_numbers, fake_result
 
 DICE = REPO_ROOT / "recordings" / "demo_062_dice.mcap"
 RAW = REPO_ROOT / "recordings" / "synth_005_tomato_soup_can.mcap"
@@ -259,3 +263,132 @@ def test_augment_a_demo_from_the_page(chromium, tmp_path: Path) -> None:
         assert row.locator("button.augment").count() == 1
         page.goto("about:blank")
     print(f"dashboard test wall time {time.perf_counter() - t0:.1f} s")
+
+
+LOADED = "() => document.body.dataset.loaded === '1'"
+
+
+def _dice_row(page: Any) -> Any:
+    return page.locator(".session[data-session='demo_062_dice.mcap'] .demo")
+
+
+@needs_menagerie
+@needs_ycb
+@pytest.mark.timeout(240)
+def test_put_a_result_on_an_arm_from_the_page(chromium, tmp_path: Path) -> None:
+    """The dice demo augmented (6 grasps), then "Put on arm" with ur5e and 2 placements chosen on
+    the page: the job runs the real arm stage, its progress counts the file's pairs, the page
+    shows the file's own numbers and links it, and a restarted dashboard lists them."""
+    from dexaug.dashboard.server import Dashboard, DashboardConfig
+    from dexaug.pipeline.options import AugmentOptions
+    from dexaug.pipeline.run import augment_demo
+    from teleop.record.demos import extract_demos
+
+    t0 = time.perf_counter()
+    out = tmp_path / "out"
+    opts = AugmentOptions(n=6, workers=1, gallery=0)
+    sessions = _sessions_dir(tmp_path)
+    (demo,) = extract_demos(sessions / DICE.name)   # as the dashboard lists it: not "earlier"
+    summary = augment_demo(demo, out, opts)
+    assert summary.passed > 0
+    cfg = DashboardConfig(sessions, out, opts, port=0)
+    console: list[str] = []
+    with Dashboard(cfg) as dash:
+        url = dash.start()
+        page = new_page(chromium, https=False, console=console, viewport=(1200, 900))
+        page.goto(url)
+        page.wait_for_function(LOADED, timeout=30_000)
+        row = _dice_row(page)
+        assert row.locator(".arm-result").count() == 0
+        assert "other options" not in row.locator(".done-note").inner_text()
+        assert row.locator("select.arm-name option").all_inner_texts() == ["kuka_iiwa_14", "ur5e"]
+        row.locator("select.arm-name").select_option("ur5e")
+        row.locator("input.arm-placements").fill("2")
+        row.locator("button.arm-run").click()
+        shown = row.locator(".arm-result[data-arm='ur5e']")
+        try:
+            shown.wait_for(timeout=120_000)
+        except Exception as exc:
+            raise AssertionError(f"no arm result; the row says {row.inner_text()!r}; "
+                                 f"jobs {dash.jobs.snapshot()}") from exc
+        path = out / row.get_attribute("data-key") / "arm_ur5e.h5"
+        pairs, passed, failures = arm_file_numbers(path)
+        assert pairs == 2 * summary.passed                     # the page's 2 placements
+        (job,) = dash.jobs.snapshot()
+        assert (job["kind"], job["state"], job["stage"], job["done"], job["total"]) == (
+            "arm", "done", "arm ur5e: 062_dice", pairs, pairs)
+        page_numbers = _arm_numbers(shown)
+        assert page_numbers == (pairs, passed, _failure_text(failures),
+                                f"{100 * passed / pairs:.1f} %")
+        href = shown.locator("a.arm-file").get_attribute("href")
+        with urllib.request.urlopen(url.rstrip("/") + href, timeout=30) as r:
+            assert r.read() == path.read_bytes()
+        shot = artifact_path("dashboard_arm.png")
+        page.screenshot(path=str(shot), full_page=True)
+        assert not [c for c in console if c.startswith(("error", "pageerror"))], console
+        page.goto("about:blank")
+
+    with Dashboard(cfg) as again:   # the catalog lists the arm file from disk
+        page.goto(again.start())
+        page.wait_for_function(LOADED, timeout=30_000)
+        assert _arm_numbers(row.locator(".arm-result[data-arm='ur5e']")) == page_numbers
+        (listed,) = _get(again.url + "api/sessions")[1]["sessions"][0]["demos"][0]["result"]["arms"]
+        assert (listed["arm"], listed["placements"], listed["pairs"], listed["passed"],
+                listed["failures"], listed["stale"]) == ("ur5e", 2, pairs, passed, failures, False)
+        page.goto("about:blank")
+    print(f"arm dashboard test wall time {time.perf_counter() - t0:.1f} s")
+
+
+def _failure_text(failures: dict[str, int]) -> str:
+    return ", ".join(f"{k} {v}" for k, v in sorted(failures.items())) or "none"
+
+
+def _arm_numbers(shown: Any) -> tuple[int, int, str, str]:
+    """(pairs, passed, failures, pass share) as an arm result line of the page states them."""
+    return (int(shown.locator(".arm-pairs").inner_text()),
+            int(shown.locator(".arm-passed").inner_text()),
+            shown.locator(".arm-failures").inner_text(), shown.locator(".arm-share").inner_text())
+
+
+@needs_menagerie
+@needs_ycb
+def test_an_arm_jobs_progress_and_failure_show_on_the_page(chromium, tmp_path: Path) -> None:
+    """A gated arm job: the page shows its stage and counts while it runs, then its error with
+    the control to try again; the job got the catalog's dataset and the page's placements."""
+    from dexaug.dashboard.server import Dashboard, DashboardConfig
+    from dexaug.pipeline.options import AugmentOptions
+    from teleop.record.demos import extract_demos
+
+    calls: list[Any] = []
+    release = threading.Event()
+
+    def gated_arm(payload: Any, progress) -> dict[str, Any]:
+        calls.append(payload)
+        progress("arm ur5e: 062_dice", 2, 5)
+        release.wait(30.0)
+        raise DexaugError("ur5e: the arm's model is not installed")
+
+    cfg = DashboardConfig(_sessions_dir(tmp_path), tmp_path / "out",
+                          AugmentOptions(n=5, workers=1, gallery=0), port=0)
+    data = fake_result(Path(cfg.out_root).resolve(), extract_demos(DICE)[0])
+    console: list[str] = []
+    with Dashboard(cfg, target=fake_job, arm_target=gated_arm) as dash:
+        page = new_page(chromium, https=False, console=console)
+        page.goto(dash.start())
+        page.wait_for_function(LOADED, timeout=30_000)
+        row = _dice_row(page)
+        row.locator("input.arm-placements").fill("3")
+        row.locator("button.arm-run").click()
+        progress = row.locator(".arm-progress-text")
+        progress.filter(has_text="arm ur5e: 062_dice: 2 / 5").wait_for(timeout=20_000)
+        assert row.locator("button.arm-run").count() == 0     # no second click while it runs
+        release.set()
+        error = row.locator(".arm-error")
+        error.wait_for(timeout=20_000)
+        assert error.inner_text() == ("Putting on the arm failed: ur5e: the arm's model is "
+                                      "not installed")
+        assert row.locator("button.arm-run").count() == 1
+        (job,) = calls
+        assert (job.dataset, job.arm, job.placements) == (data, "kuka_iiwa_14", 3)
+        assert not [c for c in console if c.startswith(("error", "pageerror"))], console
+        page.goto("about:blank")

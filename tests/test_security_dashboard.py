@@ -8,7 +8,9 @@ browser makes are made by headless Chromium from a page of a foreign origin (Pla
 rebinding, also on the session list), no token beyond loopback. Each refusal is checked on the
 answer (status and JSON error) and on what matters: no job was queued and the job target never
 ran. The positive tests are the dashboard's own page queuing a job, on loopback and, bound
-beyond loopback, with the token of its printed URL. The jobs are a gate (no pipeline): they
+beyond loopback, with the token of its printed URL. The arm endpoint (``/api/arm``) gets the same
+refusals, and it takes no path: a demo key, arm or placements that is not one the page offers is
+refused, and a path sent beside a valid request never reaches the job. The jobs are a gate (no pipeline): they
 report progress and wait for the test. The queue tests run ``python -c "sleep"`` processes that
 write their own start and end times, so the concurrency is measured on the processes.
 """
@@ -38,6 +40,7 @@ from dexaug.pipeline.options import AugmentOptions
 from sim.paths import REPO_ROOT
 from tests.browser import new_page
 from tests.conftest import needs_menagerie, needs_ycb
+from tests.fake_results import fake_result
 
 DICE = REPO_ROOT / "recordings" / "demo_062_dice.mcap"
 EVIL = "http://evil.example"
@@ -86,7 +89,7 @@ def serve(tmp_path: Path) -> Iterator[Callable[..., tuple[Dashboard, str, Gate]]
         cfg = DashboardConfig(sessions, tmp_path / "out", AugmentOptions(n=5, workers=1, gallery=0),
                               host=host, port=0, **config)
         gate = Gate()
-        dash = Dashboard(cfg, target=gate)
+        dash = Dashboard(cfg, target=gate, arm_target=gate)
         started.append((dash, gate))
         dash.start()
         return dash, f"http://127.0.0.1:{dash.port}/", gate
@@ -328,6 +331,51 @@ def test_the_job_list_is_bounded() -> None:
     finally:
         gate.open.set()
         q.close()
+
+
+@needs_menagerie
+@needs_ycb
+def test_the_arm_endpoint_takes_no_path_and_needs_the_token(serve) -> None:
+    """``POST /api/arm`` bound beyond loopback: without the token, with a wrong one, cross-site
+    or text/plain it is refused (403); a demo key that is a path (404), an arm that is a path or
+    placements out of bounds (400), a demo without a result (409) start nothing. A path sent
+    beside a valid request is ignored: the job gets the catalog's result file."""
+    dash, base, gate = serve(host="0.0.0.0")
+    token = dash.token
+    auth = {"Content-Type": "application/json", "X-Dexaug-Token": token}
+    (key,) = _demo_keys(base, {"X-Dexaug-Token": token})
+    good = {"demo": key, "arm": "ur5e", "placements": 2}
+
+    def arm(body: Any, headers: dict[str, str]) -> tuple[int, Any]:
+        status, doc, _ = _request(base + "api/arm", json.dumps(body).encode(), headers)
+        return status, doc
+
+    assert arm(good, auth)[0] == 409                # no result yet: nothing to put on an arm
+    data = fake_result(dash.config.out_root, dash.catalog.demo(key).demo)
+    refused = {
+        "no token": (good, OWN, 403),
+        "a wrong token": (good, {**auth, "X-Dexaug-Token": token[:-1] + "x"}, 403),
+        "text/plain": (good, {"Content-Type": "text/plain", "X-Dexaug-Token": token}, 403),
+        "a foreign origin": (good, {**auth, "Origin": EVIL}, 403),
+        "a relative path as the demo": ({**good, "demo": "../../etc/passwd"}, auth, 404),
+        "the result folder as the demo": ({**good, "demo": str(data.parent)}, auth, 404),
+        "the key through a path": ({**good, "demo": f"{key}/../{key}"}, auth, 404),
+        "a path as the arm": ({**good, "arm": "../../configs/arms/ur5e/arm.toml"}, auth, 400),
+        "too many placements": ({**good, "placements": 10**6}, auth, 400),
+        "placements as text": ({**good, "placements": "2; rm -rf /"}, auth, 400),
+        "no arm": ({"demo": key}, auth, 400),
+    }
+    for what, (body, headers, status) in refused.items():
+        got, doc = arm(body, headers)
+        assert got == status and doc["error"], (what, got, doc)
+    time.sleep(0.3)
+    assert dash.jobs.snapshot() == [] and gate.calls == []
+    status, doc = arm({**good, "dataset": "/etc/passwd", "out": "/tmp/evil.h5"}, auth)
+    assert status == 200 and (doc["job"]["kind"], doc["job"]["demo"]) == ("arm", key)
+    _wait(lambda: len(gate.calls) == 1, "the arm job's start")
+    (job,) = gate.calls
+    assert (job.dataset, job.arm, job.placements) == (data, "ur5e", 2)
+    assert job.dataset.is_relative_to(dash.config.out_root)
 
 
 # --------------------------------------------------------------------------- the augment queue

@@ -12,6 +12,7 @@ import logging
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rich.console import Console
 from rich.markup import escape
@@ -26,7 +27,11 @@ from dexaug.commands.options import (
 )
 from dexaug.commands.registry import command
 from dexaug.commands.running import (
+    arm_args,
+    arm_placements,
+    arm_table,
     progress_bars,
+    put_on_arm,
     ray_args,
     ray_options,
     run_units,
@@ -35,6 +40,9 @@ from dexaug.commands.running import (
 )
 from dexaug.commands.workers import stop_workers
 from sim.errors import UsageError
+
+if TYPE_CHECKING:
+    from dexaug.pipeline.summary import DemoSummary
 
 log = logging.getLogger(__name__)
 
@@ -135,6 +143,7 @@ def _augment_args(p: argparse.ArgumentParser) -> None:
                    help="grasps rendered in each report (0: no report)")
     generation_args(p)
     ray_args(p)
+    arm_args(p)
 
 
 @command("augment", _augment_args)
@@ -148,7 +157,8 @@ def augment_cmd(args: argparse.Namespace, console: Console) -> int:
     sessions as they are recorded. A session without a usable grasp, object or hand is
     reported with the reason and the others go on (exit status 1 if any failed). --ray runs
     the demos on a Ray cluster instead of the local process pool (see dexaug batch for many
-    sessions and objects at once).
+    sessions and objects at once). --arm ARM then puts each demo's passing grasps on that arm
+    at a table (as dexaug arm does) into arm_<ARM>.h5 beside them.
     """
     from dexaug.pipeline.run import augment_demo, augment_session
     from dexaug.scale.ray_cluster import ray_cluster
@@ -158,23 +168,24 @@ def augment_cmd(args: argparse.Namespace, console: Console) -> int:
 
     if not args.inputs and not args.watch:
         raise UsageError("give sessions to augment or --watch DIR")
+    arm_placements(args)          # --arm-placements without --arm: refused before any work
     opts = ray_options(args)
     failed = 0
-    rows = []
+    rows, arm_rows = [], []
     with contextlib.ExitStack() as stack, progress_bars(console) as bar:
         if args.ray is not None:
             stack.enter_context(ray_cluster(args.ray, num_cpus=args.ray_cpus))
 
-        def one(path: Path) -> None:
+        def augment(path: Path) -> list[DemoSummary]:
+            """``path``'s demos augmented (a line each); a failure is printed and counted."""
             nonlocal failed
             if args.ray is not None:
                 units, errors = gather_units([path], opts)
                 for text in errors:
                     console.print(text, style="red", highlight=False)
                 done, bad = run_units(units, args, console, bar)
-                rows.extend(done)
                 failed += len(errors) + bad
-                return
+                return done
             tick = stage_ticker(bar)
             try:
                 if path.suffix == ".json":
@@ -187,18 +198,27 @@ def augment_cmd(args: argparse.Namespace, console: Console) -> int:
                 failed += 1
                 text = str(exc) if str(path) in str(exc) else f"{path}: {exc}"
                 console.print(text, style="red", highlight=False)
-                return
+                return []
             for s in summaries:
-                rows.append(s)
                 state = "skipped (done)" if s.skipped else "done"
                 console.print(f"{s.demo_id}: {s.passed}/{s.generated} passed, {state}; "
                               f"report {s.report}")
+            return summaries
+
+        def one(path: Path) -> None:
+            nonlocal failed
+            summaries = augment(path)
+            rows.extend(summaries)
+            done, bad = put_on_arm(summaries, args, console, bar)
+            arm_rows.extend(done)
+            failed += bad
 
         for path in args.inputs:
             one(path)
         if args.watch:
             _watch(args.watch, args.poll, one, console)
     summary_table(console, rows)
+    arm_table(console, arm_rows)
     return 1 if failed else 0
 
 

@@ -1,5 +1,6 @@
-"""What the augmentation commands share: rich progress bars, the per-unit summary table, and
-running units of work (``dexaug batch``, ``augment --ray``) locally or on Ray."""
+"""What the augmentation commands share: rich progress bars, the per-unit summary table,
+running units of work (``dexaug batch``, ``augment --ray``) locally or on Ray, and the optional
+arm stage after each unit (``--arm``)."""
 
 from __future__ import annotations
 
@@ -14,13 +15,16 @@ from rich.table import Table
 
 from dexaug.commands.argtypes import count
 from dexaug.commands.options import augment_options
+from sim.errors import UsageError
 
 if TYPE_CHECKING:
+    from dexaug.pipeline.arm_stage import ArmStageOutcome
     from dexaug.pipeline.options import AugmentOptions
     from dexaug.pipeline.summary import DemoSummary
     from dexaug.scale.units import Unit
 
-__all__ = ["progress_bars", "ray_args", "ray_options", "run_units", "stage_ticker", "summary_table"]
+__all__ = ["ArmRow", "arm_args", "arm_placements", "arm_table", "progress_bars", "put_on_arm",
+           "ray_args", "ray_options", "run_units", "stage_ticker", "summary_table"]
 
 
 def progress_bars(console: Console) -> Progress:
@@ -115,4 +119,98 @@ def summary_table(console: Console, rows: list[DemoSummary]) -> None:
         t.add_row(s.demo_id, s.object, str(s.generated), str(s.passed), f"{rate:.0f}",
                   f"{s.timings_s.get('fsg', 0):.1f}", f"{s.timings_s.get('validate', 0):.1f}",
                   f"{s.validated_per_min:.0f}", str(s.report))
+    console.print(t)
+
+
+# ------------------------------------------------------------------------------ the arm stage
+
+def arm_args(p: argparse.ArgumentParser) -> None:
+    """``--arm ARM``, ``--arm-placements N``: put each unit's grasps on an arm once written."""
+    from dexaug.pipeline.arm_stage import DEFAULT_PLACEMENTS
+    from sim.arm.config import arm_names
+
+    p.add_argument("--arm", choices=arm_names(), default=None,
+                   help="after each demo's result is written, put its passing grasps on this arm "
+                   "at a table as `dexaug arm` does (carried grasps, placement seed 0) into "
+                   "<result folder>/arm_<ARM>.h5; a file already made from the same dataset "
+                   "is kept (--force redoes it). The augmentation's results and resume are "
+                   "unchanged. Default: no arm stage")
+    p.add_argument("--arm-placements", type=count, default=None, metavar="N",
+                   help=f"--arm: random resting placements of the object on the table; "
+                   f"default {DEFAULT_PLACEMENTS}")
+
+
+def arm_placements(args: argparse.Namespace) -> int | None:
+    """The arm stage's placements, None without ``--arm``; ``--arm-placements`` alone is a
+    mistake (it would silently do nothing), refused before any work."""
+    from dexaug.pipeline.arm_stage import DEFAULT_PLACEMENTS
+
+    if args.arm is None:
+        if args.arm_placements is not None:
+            raise UsageError("--arm-placements needs --arm ARM")
+        return None
+    return args.arm_placements or DEFAULT_PLACEMENTS
+
+
+@dataclasses.dataclass(frozen=True)
+class ArmRow:
+    """One unit's arm stage, for the final table."""
+
+    unit: str
+    outcome: ArmStageOutcome
+
+
+def _arm_line(unit: str, o: ArmStageOutcome) -> str:
+    """``demo: on ur5e, 3 of 12 (placement, grasp) pairs held (25.0 %); failures table 9;
+    wrote …/arm_ur5e.h5`` (or the reason it was skipped)."""
+    if o.file is None:
+        return f"{unit}: on {o.arm}, skipped ({o.skipped})"
+    f = o.file
+    share = "–" if f.pass_share is None else f"{100 * f.pass_share:.1f} %"
+    done = "already made" if o.skipped else f"wrote {o.path}"
+    return (f"{unit}: on {o.arm}, {f.passed} of {f.pairs} (placement, grasp) pairs held "
+            f"({share}); failures {f.failures_text()}; {done}")
+
+
+def put_on_arm(summaries: Sequence[DemoSummary], args: argparse.Namespace, console: Console,
+               bar: Progress) -> tuple[list[ArmRow], int]:
+    """The arm stage of each finished unit (``--arm``; nothing without it), with a progress bar
+    and a line per unit; a unit whose stage fails is printed in red and the others go on.
+    Returns the rows and the number that failed."""
+    from dexaug.pipeline.arm_stage import run_arm_stage
+    from sim.errors import DexaugError
+
+    placements = arm_placements(args)
+    rows, failed = [], 0
+    if placements is None:
+        return rows, failed
+    for s in summaries:
+        try:
+            outcome = run_arm_stage(s.dataset, args.arm, placements=placements,
+                                    progress=stage_ticker(bar), force=args.force)
+        except DexaugError as exc:
+            failed += 1
+            console.print(f"{s.demo_id}: arm stage on {args.arm} failed: {exc}", style="red",
+                          highlight=False, markup=False)
+            continue
+        rows.append(ArmRow(s.demo_id, outcome))
+        console.print(_arm_line(s.demo_id, outcome), highlight=False, markup=False)
+    return rows, failed
+
+
+def arm_table(console: Console, rows: Sequence[ArmRow]) -> None:
+    """One row per unit's arm file: pairs, passed, pass share, failures by reason."""
+    if not rows:
+        return
+    t = Table(title="grasps on an arm")
+    for col in ("demo", "arm", "placements", "pairs", "passed", "pass %", "failures", "file"):
+        t.add_column(col)
+    for r in rows:
+        f = r.outcome.file
+        if f is None:
+            t.add_row(r.unit, r.outcome.arm, "", "", "", "", f"skipped: {r.outcome.skipped}", "")
+            continue
+        share = "–" if f.pass_share is None else f"{100 * f.pass_share:.1f}"
+        t.add_row(r.unit, f.arm, str(f.placements), str(f.pairs), str(f.passed), share,
+                  f.failures_text(), str(r.outcome.path))
     console.print(t)

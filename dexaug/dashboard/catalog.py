@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import quote
 
+from dexaug.dashboard.arm_jobs import arm_views
 from dexaug.pipeline.options import AugmentOptions, demo_dir, run_key
 from dexaug.pipeline.summary import demo_grasp_text, stored
 from sim.demo import Demo
@@ -189,12 +190,24 @@ class Catalog:
         """The result of ``entry`` in the output folder, or None: finished under the dashboard's
         options and today's configs (``earlier``: False), or an earlier one made under others
         (``make demo``'s, a CLI run with another ``--n``: ``earlier`` True, and augmenting again
-        replaces it)."""
-        summary = stored(demo_dir(self.out_root, entry.demo), entry.demo.id)
+        replaces it); ``arms``: its grasps put on arms (:func:`arm_views`)."""
+        folder = demo_dir(self.out_root, entry.demo)
+        summary = stored(folder, entry.demo.id)
         if summary is None:
             return None
         return {**result_view({**summary.to_json(), "skipped": True}, self.out_root),
-                "earlier": summary.run_key != run_key(entry.demo, self.opts)}
+                "earlier": summary.run_key != run_key(entry.demo, self.opts),
+                "arms": arm_views(folder, folder.name)}
+
+    def result_dataset(self, entry: DemoEntry) -> Path | None:
+        """The ``grasps.h5`` of ``entry``'s finished result, or None. Made from the catalog's
+        own folder rule (:func:`demo_dir` under the output folder), never from a path a request
+        or a summary names, so a web request can only reach the results the page lists."""
+        folder = demo_dir(self.out_root, entry.demo)
+        data = folder / "grasps.h5"
+        if stored(folder, entry.demo.id) is None or not data.is_file():
+            return None
+        return data
 
     def to_json(self) -> list[dict[str, Any]]:
         """The listing for the page (a fresh scan)."""

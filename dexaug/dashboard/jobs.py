@@ -1,4 +1,5 @@
-"""The dashboard's job queue: one augmentation at a time, on a worker thread of the server.
+"""The dashboard's job queue: one job (an augmentation, or a result put on an arm) at a time,
+on a worker thread of the server.
 
 Why a thread and not a child process per job: the pipeline already runs its heavy parts in
 process pools (FSG's fork-server pool, validation's spawn pool), and FSG keeps its pool alive for
@@ -51,14 +52,19 @@ class JobQueueFull(DexaugError):
 
 @dataclass
 class Job:
-    """One queued or finished job: what it is for (``key``, ``label``), where it is
-    (``state``, the pipeline ``stage`` and its ``done``/``total``), and how it ended
-    (``result`` or ``error``; ``detail`` holds a traceback for errors that are not dexaug's)."""
+    """One queued or finished job: what it is for (``key``, ``label``; ``kind``: "augment" or
+    "arm", ``demo``: the listed demo it belongs to), where it is (``state``, the pipeline
+    ``stage`` and its ``done``/``total``), and how it ended (``result`` or ``error``; ``detail``
+    holds a traceback for errors that are not dexaug's). ``target`` replaces the queue's own
+    for this job (a kind of job the queue was not made for)."""
 
     id: int
     key: str
     label: str
     payload: Any = field(repr=False)
+    kind: str = "augment"
+    demo: str = ""
+    target: JobTarget | None = field(default=None, repr=False)
     state: str = "queued"
     stage: str = ""
     done: int = 0
@@ -75,7 +81,8 @@ class Job:
         return self.state in ("queued", "running")
 
     def to_json(self) -> dict[str, Any]:
-        return {"id": self.id, "key": self.key, "label": self.label, "state": self.state,
+        return {"id": self.id, "key": self.key, "label": self.label, "kind": self.kind,
+                "demo": self.demo or self.key, "state": self.state,
                 "stage": self.stage, "done": self.done, "total": self.total,
                 "result": self.result, "error": self.error, "queued_at": self.queued_at,
                 "started_at": self.started_at, "finished_at": self.finished_at}
@@ -103,10 +110,12 @@ class JobQueue:
         self._worker = threading.Thread(target=self._run, name="dexaug-jobs", daemon=True)
         self._worker.start()
 
-    def submit(self, key: str, label: str, payload: Any) -> Job:
-        """Queue a job for ``key`` (a demo); while one for that key is queued or running, that
-        one is returned instead (a double click starts nothing twice). Raises
-        :class:`JobQueueFull` while ``max_queued`` jobs wait."""
+    def submit(self, key: str, label: str, payload: Any, *, kind: str = "augment",
+               demo: str = "", target: JobTarget | None = None) -> Job:
+        """Queue a job for ``key`` (a demo, or a demo on an arm); while one for that key is
+        queued or running, that one is returned instead (a double click starts nothing twice).
+        ``kind``, ``demo`` and ``target``: see :class:`Job`. Raises :class:`JobQueueFull`
+        while ``max_queued`` jobs wait."""
         with self._lock:
             for job in self._jobs.values():
                 if job.key == key and job.active:
@@ -115,7 +124,7 @@ class JobQueue:
             if waiting >= self.max_queued:
                 raise JobQueueFull(f"{waiting} augmentations are already waiting (the most the "
                                    "dashboard queues); try again when one has started")
-            job = Job(next(self._ids), key, label, payload)
+            job = Job(next(self._ids), key, label, payload, kind, demo, target)
             self._jobs[job.id] = job
         log.info("job %d queued: %s", job.id, label)
         self._pending.put(job)
@@ -170,7 +179,7 @@ class JobQueue:
             self._update(job, stage=str(stage), done=int(done), total=int(total))
 
         try:
-            result = self._target(job.payload, progress)
+            result = (job.target or self._target)(job.payload, progress)
         except DexaugError as exc:
             self._failed(job, str(exc), None)
             return

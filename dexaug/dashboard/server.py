@@ -6,6 +6,8 @@ Routes::
     GET  /api/sessions          sessions, their demos (or why none), finished results, options
     GET  /api/jobs              every job: state, pipeline stage and progress, result or error
     POST /api/augment           {"demo": KEY} → queue KEY's augmentation; the job as JSON
+    POST /api/arm               {"demo": KEY, "arm": ARM, "placements": N} → queue putting
+                                KEY's finished result on ARM (arm_<ARM>.h5 in its folder)
     GET  /thumbnails/KEY.png    the demo grasp (a placeholder SVG without OpenGL)
     GET  /results/...           the output folder: each demo's report.html and its images
 
@@ -18,8 +20,8 @@ The page polls ``/api/jobs`` for live progress: polling needs no connection stat
 side, survives a restarted server, and at a few requests per second costs nothing here.
 
 Nothing slow runs on the event loop: session scans go to the default thread pool, renders to
-one dedicated render thread (:mod:`dexaug.dashboard.catalog`), augmentations to the job
-thread (:mod:`dexaug.dashboard.jobs`; the pipeline runs its own process pools). The server runs
+one dedicated render thread (:mod:`dexaug.dashboard.catalog`), augmentations and arm runs to
+the job thread (:mod:`dexaug.dashboard.jobs`; the pipeline runs its own process pools). The server runs
 its loop in a background thread (:meth:`Dashboard.start`), so tests and the CLI drive it the
 same way.
 """
@@ -41,9 +43,11 @@ from typing import Any
 
 from aiohttp import web
 
+from dexaug.dashboard.arm_jobs import ArmJob, parse_arm_request, run_arm_job
 from dexaug.dashboard.catalog import Catalog, result_view
 from dexaug.dashboard.guard import WILDCARDS, Guard
 from dexaug.dashboard.jobs import JobQueue, JobQueueFull, JobTarget, run_augmentation
+from dexaug.pipeline.arm_stage import DEFAULT_PLACEMENTS, MAX_PLACEMENTS
 from dexaug.pipeline.options import AugmentOptions
 from sim.errors import DexaugError
 
@@ -72,11 +76,13 @@ class DashboardConfig:
 
 
 class Dashboard:
-    """The dashboard (module docstring). ``target`` replaces the augmentation run in a job
-    (tests); :meth:`start` serves and returns the URL, :meth:`close` stops everything."""
+    """The dashboard (module docstring). ``target`` replaces the augmentation run in a job,
+    ``arm_target`` the arm run (tests); :meth:`start` serves and returns the URL,
+    :meth:`close` stops everything."""
 
     def __init__(self, config: DashboardConfig | None = None, *,
-                 target: JobTarget = run_augmentation) -> None:
+                 target: JobTarget = run_augmentation,
+                 arm_target: JobTarget = run_arm_job) -> None:
         cfg = config or DashboardConfig()
         # absolute: summaries store dataset paths, and the report links are made relative to it
         self.config = dataclasses.replace(cfg, sessions_dir=Path(cfg.sessions_dir).resolve(),
@@ -86,6 +92,7 @@ class Dashboard:
         self.guard = Guard(self.config.host)
         self.jobs = JobQueue(target, max_queued=self.config.max_queued,
                              max_finished=self.config.max_finished)
+        self._arm_target = arm_target
         self._render = ThreadPoolExecutor(1, thread_name_prefix="dexaug-render")
         self._static = Path(str(resources.files("dexaug.dashboard") / "static"))
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -104,7 +111,7 @@ class Dashboard:
         app = web.Application(middlewares=[self.guard.middleware])
         app.add_routes([web.get("/", self._index), web.get("/favicon.ico", self._icon),
                         web.get("/api/sessions", self._sessions), web.get("/api/jobs", self._jobs),
-                        web.post("/api/augment", self._augment),
+                        web.post("/api/augment", self._augment), web.post("/api/arm", self._arm),
                         web.get("/thumbnails/{key}.png", self._thumbnail),
                         web.static("/static/", self._static),
                         web.static("/results/", self.config.out_root)])
@@ -183,15 +190,19 @@ class Dashboard:
     # -------------------------------------------------------------------------------- handlers
 
     def _options_json(self) -> dict[str, Any]:
+        from sim.arm.config import arm_names
+
         o = self.config.options
         return {"n": o.n, "validate": o.validate, "workers": o.workers, "gallery": o.gallery,
                 "seed": o.seed, "time_budget_s": o.time_budget_s, "table": o.table,
                 "link_penetration": o.link_penetration,
                 "sessions_dir": str(self.config.sessions_dir),
-                "out_root": str(self.config.out_root)}
+                "out_root": str(self.config.out_root), "arms": arm_names(),
+                "arm_placements": DEFAULT_PLACEMENTS, "arm_placements_max": MAX_PLACEMENTS}
 
     def _job_json(self, job: dict[str, Any]) -> dict[str, Any]:
-        if job.get("result") is not None:
+        # an arm job's result is already the page's view (run_arm_job)
+        if job.get("result") is not None and job.get("kind") != "arm":
             job = {**job, "result": result_view(job["result"], self.config.out_root)}
         return job
 
@@ -227,6 +238,33 @@ class Dashboard:
         try:
             job = self.jobs.submit(key, entry.demo.id,
                                    (entry.demo, str(self.config.out_root), self.config.options))
+        except JobQueueFull as exc:
+            return web.json_response({"error": str(exc)}, status=429)
+        return web.json_response({"job": self._job_json(job.to_json())})
+
+    async def _arm(self, request: web.Request) -> web.Response:
+        """Queue putting a listed demo's finished result on an arm. The body names the demo
+        by its catalog key only; the grasps file is the catalog's (module docstring of
+        :mod:`dexaug.dashboard.arm_jobs`)."""
+        try:
+            key, arm, placements = parse_arm_request(await request.json())
+        except ValueError:
+            return web.json_response({"error": "the body is not JSON"}, status=400)
+        except DexaugError as exc:
+            return web.json_response({"error": str(exc)}, status=400)
+        entry = self.catalog.demo(key)
+        if entry is None:
+            return web.json_response({"error": f"no demo {key!r} (reload the page)"},
+                                     status=404)
+        data = None if entry.error else await asyncio.to_thread(self.catalog.result_dataset, entry)
+        if data is None:
+            return web.json_response({"error": entry.error or f"demo {entry.demo.id} has no "
+                                      "finished result to put on an arm: augment it first"},
+                                     status=409)
+        try:
+            job = self.jobs.submit(f"arm:{key}:{arm}", f"{entry.demo.id} on {arm}",
+                                   ArmJob(key, data, arm, placements), kind="arm", demo=key,
+                                   target=self._arm_target)
         except JobQueueFull as exc:
             return web.json_response({"error": str(exc)}, status=429)
         return web.json_response({"job": self._job_json(job.to_json())})

@@ -1,12 +1,17 @@
 // dexaug dashboard page: lists sessions and demos (/api/sessions), starts augmentations
-// (POST /api/augment) and shows their live progress by polling /api/jobs. No libraries.
+// (POST /api/augment) and puts finished results on an arm (POST /api/arm), and shows the
+// jobs' live progress by polling /api/jobs. No libraries.
 "use strict";
 
 const POLL_MS = 500;
 const STAGES = { workspace: "AutoWS workspace", fsg: "FSG sampling", validate: "validation",
                  report: "report" };
 const demos = new Map();   // key -> demo JSON from /api/sessions (its .result kept up to date)
-const jobs = new Map();    // key -> newest job JSON from /api/jobs
+const jobs = new Map();    // key -> newest augmentation job JSON from /api/jobs
+const armJobs = new Map();   // demo key -> newest arm job JSON
+const armFiles = new Map();  // demo key -> its result's arm files (catalog, then arm jobs)
+const armChoice = new Map(); // demo key -> {arm, placements} last chosen on the page
+let OPTIONS = { arms: [], arm_placements: 10, arm_placements_max: 200 };
 // Every request carries the custom header the server requires of the page (a cross-site page
 // cannot send it without a CORS preflight, which the server never grants) and, when the page
 // was opened with the printed URL's token (a dashboard listening beyond this machine), the token.
@@ -71,6 +76,62 @@ function resultBlock(r) {
     nums, demoGrasp, failures ? el("div", { text: `failures: ${failures}` }) : null, link);
 }
 
+function armFileRow(a) {
+  if (a.error) return el("div", { class: "error arm-file-error", text: `${a.file}: ${a.error}` });
+  const share = a.pass_share == null ? "—" : `${(100 * a.pass_share).toFixed(1)} %`;
+  const failures = Object.entries(a.failures).map(([k, v]) => `${k} ${v}`).join(", ") || "none";
+  return el("div", { class: "arm-result", "data-arm": a.arm },
+    el("b", { text: a.arm }), ": ", el("span", { class: "arm-passed", text: String(a.passed) }),
+    " of ", el("span", { class: "arm-pairs", text: String(a.pairs) }),
+    " (placement, grasp) pairs held, ", el("b", { class: "arm-share", text: share }),
+    ` · ${a.placements} placements · failures `,
+    el("span", { class: "arm-failures", text: failures }), " · ",
+    el("a", { class: "arm-file", href: a.url, text: a.file }),
+    a.stale ? el("span", { class: "warning arm-stale", text: " (made from an earlier dataset)" })
+      : null);
+}
+
+function armControls(d) {
+  const choice = armChoice.get(d.key) ||
+    { arm: OPTIONS.arms[0], placements: String(OPTIONS.arm_placements) };
+  const select = el("select", { class: "arm-name" },
+    ...OPTIONS.arms.map((a) => el("option", { value: a, text: a })));
+  select.value = choice.arm;
+  const input = el("input", { class: "arm-placements", type: "number", min: "1",
+    max: String(OPTIONS.arm_placements_max), value: choice.placements });
+  // the box is redrawn on every progress change: keep what the user chose
+  const remember = () => armChoice.set(d.key, { arm: select.value, placements: input.value });
+  select.addEventListener("change", remember);
+  input.addEventListener("input", remember);
+  const b = el("button", { class: "arm-run", text: "Put on arm" });
+  b.addEventListener("click", () => startArmJob(d.key, select.value, Number(input.value), b));
+  return el("div", { class: "arm-controls" }, el("label", {}, "arm ", select),
+    el("label", {}, "placements ", input), b);
+}
+
+// the result's grasps on arms: the files made so far, a running job's progress, the control
+function armBlock(d) {
+  const box = el("div", { class: "arm" }, el("div", { class: "arm-title",
+    text: "Grasps on an arm at a table" }));
+  for (const a of armFiles.get(d.key) || []) box.append(armFileRow(a));
+  const job = armJobs.get(d.key);
+  if (job && (job.state === "queued" || job.state === "running")) {
+    const text = job.state === "queued" ? `${job.label}: queued (one job at a time)`
+      : `${job.stage || `${job.label}: starting`}: ${job.done} / ${job.total}`;
+    const bar = el("progress", { max: String(Math.max(job.total, 1)), value: String(job.done) });
+    box.append(el("div", { class: "arm-progress-text", text }), bar);
+    return box;
+  }
+  if (job && job.state === "failed") {
+    box.append(el("div", { class: "error arm-error", text: `Putting on the arm failed: ${job.error}` }));
+  } else if (job && job.state === "done" && job.result.skipped) {
+    box.append(el("div", { class: "arm-note", text: `${job.label}: ${job.result.skipped}` }));
+  }
+  if (OPTIONS.arms.length) box.append(armControls(d));
+  else box.append(el("div", { text: "no arm configs installed (configs/arms/)" }));
+  return box;
+}
+
 function augmentButton(d, label) {
   const b = el("button", { class: "augment", text: label });
   b.addEventListener("click", () => startJob(d.key, b));
@@ -103,22 +164,39 @@ function renderStatus(key) {
   if (d.result) {
     box.append(resultBlock(d.result));
     if (d.result.earlier) box.append(augmentButton(d, "Augment with the dashboard's options"));
+    box.append(armBlock(d));
   } else box.append(augmentButton(d, "Augment"));
 }
 
-async function startJob(key, button) {
+// POST a job request; the queued job, or null after showing why not
+async function submitJob(path, payload, button, what) {
   button.disabled = true;
   try {
-    const r = await api("/api/augment", { method: "POST",
-      headers: { "Content-Type": "application/json" }, body: JSON.stringify({ demo: key }) });
+    const r = await api(path, { method: "POST",
+      headers: { "Content-Type": "application/json" }, body: JSON.stringify(payload) });
     const body = await r.json();
     if (!r.ok) throw new Error(body.error || `HTTP ${r.status}`);
-    jobs.set(key, body.job);
-    renderStatus(key);
+    return body.job;
   } catch (e) {
-    showMessage(`Could not start the augmentation: ${e.message}`);
+    showMessage(`Could not start ${what}: ${e.message}`);
     button.disabled = false;
+    return null;
   }
+}
+
+async function startJob(key, button) {
+  const job = await submitJob("/api/augment", { demo: key }, button, "the augmentation");
+  if (!job) return;
+  jobs.set(key, job);
+  renderStatus(key);
+}
+
+async function startArmJob(key, arm, placements, button) {
+  const job = await submitJob("/api/arm", { demo: key, arm, placements }, button,
+                              "putting the grasps on the arm");
+  if (!job) return;
+  armJobs.set(key, job);
+  renderStatus(key);
 }
 
 async function loadSessions() {
@@ -126,6 +204,7 @@ async function loadSessions() {
   const body = await r.json();
   if (!r.ok) throw new Error(body.error || `HTTP ${r.status}`);
   const o = body.options;
+  OPTIONS = o;
   document.getElementById("options").textContent =
     `sessions ${o.sessions_dir} · results ${o.out_root} · n ${o.n} · validate ` +
     `${o.validate || "none"} · workers ${o.workers} · gallery ${o.gallery} · seed ${o.seed}`;
@@ -141,6 +220,7 @@ async function loadSessions() {
     if (s.warning) box.append(el("div", { class: "warning session-warning", text: s.warning }));
     for (const d of s.demos) {
       demos.set(d.key, d);
+      armFiles.set(d.key, (d.result && d.result.arms) || []);
       box.append(demoRow(d));
     }
     root.append(box);
@@ -155,11 +235,19 @@ async function poll() {
     const body = await r.json();
     if (!r.ok) throw new Error(body.error || `HTTP ${r.status}`);
     for (const job of body.jobs) {          // oldest first: the newest per demo wins
+      if (job.kind === "arm") {
+        armJobSeen(job);
+        continue;
+      }
       const old = jobs.get(job.key);
       const changed = !old || JSON.stringify(old) !== JSON.stringify(job);
       jobs.set(job.key, job);
       const d = demos.get(job.key);
       if (d && job.state === "done" && job.result) d.result = job.result;
+      // a new dataset: the arm files made from the one it replaced no longer describe it
+      if (changed && job.state === "done" && job.result && !job.result.skipped) {
+        armFiles.set(job.key, (armFiles.get(job.key) || []).map((a) => ({ ...a, stale: true })));
+      }
       if (changed) renderStatus(job.key);
     }
     if (document.getElementById("message").textContent.startsWith("Lost")) showMessage("");
@@ -167,6 +255,15 @@ async function poll() {
     showMessage(`Lost the dashboard server (${e.message}); retrying…`);
   }
   setTimeout(poll, POLL_MS);
+}
+
+// an arm job from /api/jobs: the newest per demo is shown (several arms may be queued)
+function armJobSeen(job) {
+  const old = armJobs.get(job.demo);
+  if (old && (old.id > job.id || JSON.stringify(old) === JSON.stringify(job))) return;
+  armJobs.set(job.demo, job);
+  if (job.state === "done" && job.result) armFiles.set(job.demo, job.result.arms);
+  renderStatus(job.demo);
 }
 
 document.getElementById("rescan").addEventListener("click", () =>
