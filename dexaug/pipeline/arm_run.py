@@ -159,7 +159,10 @@ def run_arm(grasps_path: Path, arm_name: str, out: Path, *, placements: int, see
                 demo = _table_demo(grasps_path, name, table)
             except DemoError as exc:
                 raise DexaugError(str(exc)) from None
-            source = RestGrasps(hand, obj, demo, n=len(grasps), seed=seed, workers=workers)
+            source = RestGrasps(
+                hand, obj, demo, n=len(grasps), seed=seed, workers=workers,
+                progress=(lambda stage, done, total, name=name: progress(f"{name} {stage}", done, total))
+                if progress else None)
         _, results = evaluate_on_arm(
             arm, hand, obj, source, placements=placements, seed=seed,
             progress=(lambda done, total, name=name: progress(name, done, total)) if progress else None)

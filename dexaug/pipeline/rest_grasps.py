@@ -15,6 +15,7 @@ ones go to the arm.
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -50,7 +51,8 @@ class RestGrasps:
     """A :data:`sim.arm.evaluate.GraspSource` that makes ``n`` grasps per resting pose with
     ``demo``'s workspace (None: the hand's manual one) and keeps those that pass lift-drop
     hanging as that pose hangs. ``made`` records, per resting pose index, how many FSG found
-    and how many passed; a pose asked for again (another arm, another run) gets the same set."""
+    and how many passed; a pose asked for again (another arm, another run) gets the same set.
+    ``progress(stage, done, total)`` follows FSG and the validation of each pose."""
 
     hand: Hand
     obj: ObjectAsset
@@ -59,6 +61,7 @@ class RestGrasps:
     seed: int = 0
     workers: int = 1
     time_budget_s: float = 120.0
+    progress: Callable[[str, int, int], None] | None = None
     made: dict[int, dict[str, int]] = field(default_factory=dict)
     _made_grasps: dict[int, list[Grasp]] = field(default_factory=dict, repr=False)
 
@@ -68,6 +71,7 @@ class RestGrasps:
         return self._made_grasps[rest_index]
 
     def _make(self, rest_index: int, pose: RestPose) -> list[Grasp]:
+        tick = self.progress or (lambda stage, done, total: None)
         cloud = object_cloud(self.obj)
         plane = rest_table_plane(np.asarray(cloud.points), pose,
                                  raise_m=IKSettings().hand_min_distance_m)
@@ -75,10 +79,14 @@ class RestGrasps:
         res = generate_grasps(self.hand, cloud, ws, n=self.n, table=plane,
                               finger_names=demo_fingers(self.demo) if self.demo else None,
                               seed=self.seed + rest_index, workers=self.workers,
-                              time_budget_s=self.time_budget_s)
+                              time_budget_s=self.time_budget_s,
+                              progress=lambda k: tick(f"resting pose {rest_index}: FSG", k, self.n))
         grasps = [g.grasp for g in res.grasps]
+        tick(f"resting pose {rest_index}: FSG", self.n, self.n)
+        stage = f"resting pose {rest_index}: lift-drop hanging"
         verdicts = validate_many(self.hand.name, self.obj.name, grasps, "lift-drop",
-                                 workers=self.workers, gravity_dir=pose.down)
+                                 workers=self.workers, gravity_dir=pose.down,
+                                 progress=lambda k: tick(stage, k, len(grasps)))
         kept = [g for g, v in zip(grasps, verdicts, strict=True) if v.passed]
         self.made[rest_index] = {"generated": len(grasps), "passed": len(kept)}
         log.info("%s resting pose %d (down %s): %d of %d grasps made for it hold hanging so",
