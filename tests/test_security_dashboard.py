@@ -275,7 +275,7 @@ def test_beyond_loopback_every_request_needs_the_token(serve) -> None:
     assert token and len(token) >= 24
     for path in ("", "api/sessions", "api/jobs", "static/app.js"):
         assert _request(base + path)[0] == 403, path
-        assert _request(base + path, headers={"X-Dexaug-Token": token[:-1] + "x"})[0] == 403
+        assert _request(base + path, headers={"X-Dexaug-Token": _wrong(token)})[0] == 403
     status, _, hdrs = _request(base + f"?token={token}")
     cookie = hdrs.get("Set-Cookie", "")
     assert status == 200 and token in cookie and "HttpOnly" in cookie and "Strict" in cookie
@@ -354,7 +354,7 @@ def test_the_arm_endpoint_takes_no_path_and_needs_the_token(serve) -> None:
     data = fake_result(dash.config.out_root, dash.catalog.demo(key).demo)
     refused = {
         "no token": (good, OWN, 403),
-        "a wrong token": (good, {**auth, "X-Dexaug-Token": token[:-1] + "x"}, 403),
+        "a wrong token": (good, {**auth, "X-Dexaug-Token": _wrong(token)}, 403),
         "text/plain": (good, {"Content-Type": "text/plain", "X-Dexaug-Token": token}, 403),
         "a foreign origin": (good, {**auth, "Origin": EVIL}, 403),
         "a relative path as the demo": ({**good, "demo": "../../etc/passwd"}, auth, 404),
@@ -455,3 +455,9 @@ def test_the_default_command_is_dexaug_augment(tmp_path: Path) -> None:
                                                  "--n", "5"]
     finally:
         q.close()
+
+
+def _wrong(token: str) -> str:
+    """``token`` with its last character changed (always a different token: replacing it by a
+    fixed letter let the right token through when it already ended in that letter)."""
+    return token[:-1] + ("y" if token.endswith("x") else "x")
