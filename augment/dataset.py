@@ -23,16 +23,21 @@ Layout (one group per object, with the reference implementation's column names `
     targets, "bodex", "dgb-rule", "given"),
     ``closing`` (N) strings: "free" or "pinned" (the object held while the fingers closed);
     ``demo_id`` (N) strings.
-    Attributes (provenance): ``hand``, ``config_hash``, ``seed``, ``versions`` (JSON).
+    Attributes (provenance): the writer's (``hand``, ``seed``, options, configs) and, stamped
+    by :func:`save` where missing, ``versions``, ``code_version``, ``asset_sha256`` (JSON,
+    :mod:`sim.provenance`; :func:`asset_changes` checks the files). A table keeps its first
+    rows' attributes; grasps appended under others add them to ``appended``.
 ``/<object>/rejected/``: the same columns for grasps that failed validation (``failure`` says
     why), so the main table holds only usable grasps when the writer splits them.
+The file's own attributes ``versions`` and ``code_version`` name its last writer.
 
 Files are written whole through :func:`sim.io.atomic_path` (temp file + rename): a failed or
 interrupted write leaves the previous file untouched, and the temp file of a writer that was
 killed is removed by the next write of the same file (:func:`sim.io.sweep_stale_temps`).
 :func:`append` reads the existing file, concatenates and rewrites atomically (datasets are
-small: thousands of grasps per object). A file that cannot be read (missing, cut short, not
-this layout) raises :class:`DatasetError` naming it, never an h5py traceback.
+small: thousands of grasps per object); it refuses grasps the file already holds (a repeated
+run) unless told otherwise. A file that cannot be read (missing, cut short, not this layout)
+raises :class:`DatasetError` naming it, never an h5py traceback.
 """
 
 from __future__ import annotations
@@ -48,11 +53,14 @@ from typing import Any
 import h5py
 import numpy as np
 
+from sim import provenance
 from sim.errors import DexaugError
 from sim.io import atomic_path
-from sim.versions import package_versions
+from sim.provenance import AssetChange, decoded, plain
+from sim.versions import code_version, describe_code_version, package_versions
 
-__all__ = ["COLUMNS", "DatasetError", "ObjectTable", "append", "from_fsg", "load", "save",
+__all__ = ["COLUMNS", "Dataset", "DatasetError", "DuplicateGraspsError",
+           "ObjectTable", "append", "asset_changes", "existing_rows", "from_fsg", "load", "save",
            "with_rejected"]
 
 log = logging.getLogger(__name__)
@@ -67,10 +75,15 @@ COLUMNS: dict[str, Any] = {
 }
 _STR_COLUMNS = ("failure", "demo_id", "stages_made_by", "closing")
 _STR = h5py.string_dtype()
+_REPR_OBJECTS = 12   # objects a printed Dataset lists, one line each
 
 
 class DatasetError(DexaugError):
     """A grasp dataset cannot be read: missing, not HDF5, cut short, or not this layout."""
+
+
+class DuplicateGraspsError(DexaugError):
+    """:func:`append` was given grasps the file already holds (a repeated run)."""
 
 
 @dataclass
@@ -94,11 +107,9 @@ class ObjectTable:
 
     def __repr__(self) -> str:
         """A summary, not the arrays: a printed table of thousands of grasps stays one line."""
-        passed = int(np.count_nonzero(self.columns.get("passed", np.zeros(0, bool))))
-        rejected = 0 if self.rejected is None else len(self.rejected)
-        return (f"ObjectTable({len(self)} grasps, {passed} passed, {rejected} rejected; "
-                f"{len(self.joint_names)} joints, fingers {list(self.finger_names)}; "
-                f"columns {sorted(self.columns)}; attrs {sorted(self.attrs)})")
+        return (f"ObjectTable({_brief(self)}; {len(self.joint_names)} joints, fingers "
+                f"{list(self.finger_names)}; columns {sorted(self.columns)}; "
+                f"attrs {sorted(self.attrs)})")
 
     def contacts(self, i: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         o = self.columns["contact_offsets"]
@@ -107,8 +118,38 @@ class ObjectTable:
                 self.columns["contact_finger"][s])
 
 
-def _empty_like_table(t: ObjectTable) -> dict[str, np.ndarray]:
-    return {k: v[:0] for k, v in t.columns.items()}
+def _grasps(t: ObjectTable) -> int:
+    """Kept and rejected grasps of ``t``."""
+    return len(t) + (len(t.rejected) if t.rejected is not None else 0)
+
+
+def _brief(t: ObjectTable) -> str:
+    passed = int(np.count_nonzero(t.columns.get("passed", np.zeros(0, bool))))
+    rejected = 0 if t.rejected is None else len(t.rejected)
+    return (f"{len(t)} grasps ({passed} passed), {rejected} rejected, "
+            f"hand {t.attrs.get('hand', '?')}")
+
+
+class Dataset(dict[str, ObjectTable]):
+    """What :func:`load` returns: object name → table (a dict, as before), with the file's own
+    attributes (``attrs``: its last writer's versions and code version) and a repr of a few
+    lines, so printing a dataset of thousands of grasps says what it holds, not its arrays."""
+
+    def __init__(self, tables: Mapping[str, ObjectTable] | None = None,
+                 attrs: Mapping[str, Any] | None = None, path: Path | None = None) -> None:
+        super().__init__(tables or {})
+        self.attrs: dict[str, Any] = dict(attrs or {})
+        self.path = path
+
+    def __repr__(self) -> str:
+        made = describe_code_version(decoded(self.attrs.get("code_version")))
+        where = f"{self.path}: " if self.path else ""
+        lines = [f"Dataset({where}{len(self)} object{'s' * (len(self) != 1)}, "
+                 f"{sum(_grasps(t) for t in self.values())} grasps; written by {made})"]
+        lines += [f"  {name}: {_brief(t)}" for name, t in list(self.items())[:_REPR_OBJECTS]]
+        if len(self) > _REPR_OBJECTS:
+            lines.append(f"  … and {len(self) - _REPR_OBJECTS} more objects")
+        return "\n".join(lines)
 
 
 def from_fsg(grasps: Sequence[Any], joint_names: Sequence[str], finger_names: Sequence[str],
@@ -200,9 +241,8 @@ def _concat(a: ObjectTable, b: ObjectTable) -> ObjectTable:
     rej = a.rejected
     if b.rejected is not None:
         rej = b.rejected if rej is None else _concat(rej, b.rejected)
-    attrs = dict(a.attrs)
-    attrs.update(b.attrs)
-    return ObjectTable(cols, a.joint_names, a.finger_names, attrs, rej)
+    # the first rows' attributes: a table's provenance is never overwritten by later rows'
+    return ObjectTable(cols, a.joint_names, a.finger_names, dict(a.attrs), rej)
 
 
 def with_rejected(t: ObjectTable) -> ObjectTable:
@@ -228,7 +268,7 @@ def _write_group(g: h5py.Group, t: ObjectTable) -> None:
     g.attrs["joint_names"] = list(t.joint_names)
     g.attrs["finger_names"] = list(t.finger_names)
     for k, v in t.attrs.items():
-        g.attrs[k] = v if isinstance(v, (str, int, float, bool, np.number)) else json.dumps(v)
+        g.attrs[k] = _stored(v)
     if t.rejected is not None:
         _write_group(g.create_group("rejected"), t.rejected)
 
@@ -239,78 +279,122 @@ def _read_group(g: h5py.Group) -> ObjectTable:
         if isinstance(ds, h5py.Dataset):
             cols[k] = (np.array(ds.asstr()[()], dtype=object) if k in _STR_COLUMNS
                        else ds[()])
-    attrs = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in g.attrs.items()
-             if k not in ("joint_names", "finger_names")}
+    attrs = {k: plain(v) for k, v in g.attrs.items() if k not in ("joint_names", "finger_names")}
     rej = _read_group(g["rejected"]) if "rejected" in g else None
     return ObjectTable(cols, tuple(str(x) for x in g.attrs["joint_names"]),
                        tuple(str(x) for x in g.attrs["finger_names"]), attrs, rej)
 
 
+def _stored(v: Any) -> Any:
+    """An attribute value as HDF5 stores it: scalars as they are, anything else as JSON."""
+    return v if isinstance(v, (str, int, float, bool, np.number)) else json.dumps(v)
+
+
+def _stamped(name: str, t: ObjectTable) -> ObjectTable:
+    """``t`` (object ``name``) with the provenance it lacks (:func:`sim.provenance.stamped`)."""
+    return dataclasses.replace(t, attrs=provenance.stamped(t.attrs, name))
+
+
 def save(path: Path | str, tables: Mapping[str, ObjectTable],
          file_attrs: Mapping[str, Any] | None = None) -> None:
-    """Write ``tables`` (object name → table) to ``path`` atomically (replacing it); the file
-    records the versions of the packages that made it (``versions``, JSON), and each table
-    keeps the ``versions`` it was made with (a table without them gets the writer's)."""
-    versions = json.dumps(package_versions())
+    """Write ``tables`` (object name → table) to ``path`` atomically (replacing it). The file
+    records the packages and code that wrote it (``versions``, ``code_version``); each table
+    keeps the provenance it carries and gets this process's for what it lacks (module
+    docstring), so a table made elsewhere keeps what it was made with."""
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
         f.attrs["format"] = "dexaug-grasps-1"
-        f.attrs["versions"] = versions
+        f.attrs["versions"] = json.dumps(package_versions())
+        f.attrs["code_version"] = json.dumps(code_version())
         for k, v in (file_attrs or {}).items():
-            f.attrs[k] = v if isinstance(v, (str, int, float, bool)) else json.dumps(v)
+            f.attrs[k] = _stored(v)
         for name, t in tables.items():
-            if "versions" not in t.attrs:
-                t = dataclasses.replace(t, attrs={**t.attrs, "versions": versions})
-            _write_group(f.create_group(name), t)
+            _write_group(f.create_group(name), _stamped(name, t))
     log.info("wrote %s: %s", path, ", ".join(f"{k} {len(t)}" for k, t in tables.items()))
 
 
-def load(path: Path | str) -> dict[str, ObjectTable]:
-    """Read a dataset: object name → :class:`ObjectTable` (NumPy arrays). Raises
-    :class:`DatasetError` when the file cannot be read as one."""
+def _unreadable(path: Path | str, exc: Exception) -> DatasetError:
+    return DatasetError(f"{path}: not a readable grasp dataset: {exc}")
+
+
+def load(path: Path | str) -> Dataset:
+    """Read a dataset: object name → :class:`ObjectTable` (NumPy arrays), a :class:`Dataset`.
+    Raises :class:`DatasetError` when the file cannot be read as one."""
     try:
         with h5py.File(path, "r") as f:
-            return {name: _read_group(g) for name, g in f.items() if isinstance(g, h5py.Group)}
+            tables = {name: _read_group(g) for name, g in f.items() if isinstance(g, h5py.Group)}
+            attrs = {k: plain(v) for k, v in f.attrs.items()}
     except (OSError, KeyError) as exc:  # h5py: unreadable file; KeyError: a missing column/attr
-        raise DatasetError(f"{path}: not a readable grasp dataset: {exc}") from None
+        raise _unreadable(path, exc) from None
+    return Dataset(tables, attrs, Path(path))
 
 
-def _row_keys(t: ObjectTable) -> list[bytes]:
-    """Per grasp, what makes two rows the same grasp: palm pose, joints and demo, exactly."""
+def _group_rows(g: h5py.Group) -> int:
+    return int(g["gws"].shape[0]) + (_group_rows(g["rejected"]) if "rejected" in g else 0)
+
+
+def existing_rows(path: Path | str) -> int:
+    """How many grasps (kept and rejected) ``path`` holds; 0 when there is no such file. For a
+    writer that must not add to an earlier run's file unasked (``generate --out`` without
+    ``--append``); reads only the shapes. Raises :class:`DatasetError` when ``path`` exists but
+    is not a readable dataset."""
+    if not Path(path).exists():
+        return 0
+    try:
+        with h5py.File(path, "r") as f:
+            return sum(_group_rows(g) for g in f.values() if isinstance(g, h5py.Group))
+    except (OSError, KeyError) as exc:
+        raise _unreadable(path, exc) from None
+
+
+def _row_keys(t: ObjectTable | None) -> list[bytes]:
+    """Per grasp, kept then rejected, what makes two rows the same grasp: palm pose, joints
+    and demo, exactly."""
+    if t is None:
+        return []
     palm, joints = np.ascontiguousarray(t["palm_pose"]), np.ascontiguousarray(t["hand_pose"])
     return [palm[i].tobytes() + joints[i].tobytes() + str(t["demo_id"][i]).encode()
-            for i in range(len(t))]
+            for i in range(len(t))] + _row_keys(t.rejected)
 
 
-def _new_rows(old: ObjectTable | None, new: ObjectTable) -> ObjectTable:
-    """``new`` without the grasps ``old`` already holds (:func:`_row_keys`)."""
-    if old is None or not len(new):
-        return new
-    seen = set(_row_keys(old))
-    return _select(new, np.array([k not in seen for k in _row_keys(new)], bool))
+def _refuse_duplicates(path: Path, old: Mapping[str, ObjectTable],
+                       new: Mapping[str, ObjectTable]) -> None:
+    """Raise :class:`DuplicateGraspsError` when ``new`` holds grasps ``old`` already has."""
+    seen = {name: set(_row_keys(old.get(name))) for name in new}
+    dup = {name: n for name, t in new.items() if (n := sum(k in seen[name] for k in _row_keys(t)))}
+    if dup:
+        total = sum(_grasps(t) for t in new.values())
+        raise DuplicateGraspsError(
+            f"{path}: {sum(dup.values())} of the {total} grasps to append are exact duplicates "
+            f"of grasps already in the file ({', '.join(f'{k}: {n}' for k, n in dup.items())};"
+            " same palm pose, joints and demo: a repeated run?); nothing written "
+            "(allow_duplicates=True appends them anyway)")
 
 
-def append(path: Path | str, tables: Mapping[str, ObjectTable]) -> None:
+def append(path: Path | str, tables: Mapping[str, ObjectTable], *,
+           allow_duplicates: bool = False) -> None:
     """Add grasps to ``path`` (created when missing): read, concatenate per object, rewrite
-    atomically. Grasps the file already holds (the same palm pose, joints and demo: a re-run
-    with the same seed) are not added twice; how many were skipped is logged."""
+    atomically. Grasps the file already holds (the same palm pose, joints and demo: a repeated
+    run) are refused with :class:`DuplicateGraspsError` and nothing is written, unless
+    ``allow_duplicates`` (then they are added again). Each table keeps the provenance of its
+    first rows; appended grasps made otherwise are recorded in its ``appended`` attribute."""
     path = Path(path)
-    existing = load(path) if path.is_file() else {}
-    file_attrs: dict[str, Any] = {}
-    if path.is_file():
-        with h5py.File(path, "r") as f:   # load() just read it: an error here is a race
-            file_attrs = {k: v for k, v in f.attrs.items() if k not in ("format", "versions")}
-    for name, t in tables.items():
-        if name in existing:
-            old = existing[name]
-            fresh = _new_rows(old, t)
-            if t.rejected is not None:
-                fresh.rejected = _new_rows(old.rejected, t.rejected)
-            skipped = len(t) + (len(t.rejected) if t.rejected is not None else 0) - len(fresh) - (
-                len(fresh.rejected) if fresh.rejected is not None else 0)
-            if skipped:
-                log.warning("%s: %d of the new %s grasps are already in the file; not added "
-                            "again", path, skipped, name)
-            existing[name] = _concat(old, fresh)
-        else:
-            existing[name] = t
-    save(path, existing, file_attrs)
+    existing = load(path) if path.is_file() else Dataset()
+    old = {name: dataclasses.replace(t, attrs=provenance.as_recorded(t.attrs))
+           for name, t in existing.items()}
+    new = {name: _stamped(name, t) for name, t in tables.items()}
+    if not allow_duplicates:
+        _refuse_duplicates(path, old, new)
+    for name, t in new.items():   # old rows first, with their attributes (module docstring)
+        old[name] = t if name not in old else dataclasses.replace(
+            _concat(old[name], t), attrs=provenance.merged_attrs(old[name].attrs, t.attrs,
+                                                                  _grasps(t)))
+    file_attrs = {k: v for k, v in existing.attrs.items()
+                  if k not in ("format", "versions", "code_version")}
+    save(path, old, file_attrs)
+
+
+def asset_changes(path: Path | str) -> list[AssetChange]:
+    """The asset files (hand model, object) that differ here from those that made ``path``'s
+    grasps, or are missing here, per table (its own and its appended runs'); a table written
+    before asset hashes were recorded gives one "not recorded". Empty: the same assets."""
+    return [c for name, t in load(path).items() for c in provenance.recorded_changes(t.attrs, name)]

@@ -124,13 +124,24 @@ def test_generate_writes_and_appends_a_dataset(tmp_path: Path, capsys) -> None:
     first = len(t) + len(t.rejected)
     assert first == 6 and t["passed"].all()
     assert set(t["demo_id"]) == {"demo_062_dice@0.38s"}
-    assert main([*args, "--n", "100000", "--budget", "2", "--validate", "none"]) == 0
+    options = json.loads(t.attrs["options"])          # every option is kept, and the demo
+    assert options["n"] == 6 and options["workers"] == 1 and options["demo"] == str(demo)
+    assert json.loads(t.attrs["demo"])["id"] == "demo_062_dice@0.38s"
+    # an existing dataset is never appended to by surprise: refused before any work
+    capsys.readouterr()
+    assert main([*args, "--n", "6"]) == 2
+    err = capsys.readouterr().err
+    assert "already holds 6 grasps" in err and "--append" in err and len(err.strip().splitlines()) == 1
+    assert main([*args, "--append", "--seed", "1", "--n", "100000", "--budget", "2",
+                 "--validate", "none"]) == 0
     text = capsys.readouterr().out
     assert "shortfall" in text and "time budget" in text
     t2 = dataset.load(out)["062_dice"]
     assert len(t2) > len(t)   # appended, unvalidated grasps land in the main table
-    # the same run again (same seed, same grasps) adds nothing: no exact duplicates
-    assert main([*args, "--n", "6"]) == 0
+    # the same run again (same seed, same grasps) is refused: no exact duplicates, file intact
+    before = out.read_bytes()
+    assert main([*args, "--append", "--n", "6"]) == 2
+    assert "duplicate" in capsys.readouterr().err and out.read_bytes() == before
     t3 = dataset.load(out)["062_dice"]
     assert (len(t3), len(t3.rejected)) == (len(t2), len(t2.rejected))
     assert len(repr(t3)) < 1000 and f"{len(t3)} grasps" in repr(t3)

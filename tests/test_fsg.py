@@ -433,7 +433,8 @@ def test_dataset_round_trip_append_and_atomicity(tmp_path: Path, monkeypatch) ->
         raise RuntimeError("disk full")
 
     monkeypatch.setattr(dataset, "_write_group", boom)
+    fresh = dataset.from_fsg(_fake_grasps(3, 6, fingers, seed=2), joints, fingers)
     with pytest.raises(RuntimeError, match="disk full"):
-        dataset.append(path, {"obj": more})
+        dataset.append(path, {"obj": fresh})
     assert path.read_bytes() == before
     assert [p.name for p in tmp_path.iterdir()] == ["grasps.h5"]

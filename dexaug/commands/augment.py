@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import json
 import logging
 import time
 from collections.abc import Callable
@@ -39,10 +40,11 @@ from dexaug.commands.running import (
     summary_table,
 )
 from dexaug.commands.workers import stop_workers
-from sim.errors import UsageError
+from sim.errors import DexaugError, UsageError
 
 if TYPE_CHECKING:
     from dexaug.pipeline.summary import DemoSummary
+    from sim.demo import Demo
 
 log = logging.getLogger(__name__)
 
@@ -56,8 +58,10 @@ def _generate_args(p: argparse.ArgumentParser) -> None:
                    help="use at most this many fingers (priority order; FSG needs 2)")
     p.add_argument("--no-aff", action="store_true", help="sample the whole object cloud, not "
                    "its graspable part (the paper's plain FSG)")
-    p.add_argument("--out", type=Path, default=Path("grasps.h5"), help="HDF5 dataset to write "
-                   "(appended when it exists)")
+    p.add_argument("--out", type=Path, default=Path("grasps.h5"), help="HDF5 dataset to write; "
+                   "an existing one with grasps is refused unless --append; default %(default)s")
+    p.add_argument("--append", action="store_true", help="add to an existing --out (rows that "
+                   "exactly repeat its grasps are refused); default: off")
     generation_args(p)
 
 
@@ -81,6 +85,9 @@ def generate_cmd(args: argparse.Namespace, console: Console) -> int:
     from sim.validate.batch import default_workers, validate_many
     from sim.world.objects import load_object
 
+    if not args.append and (held := dataset.existing_rows(args.out)):
+        raise DexaugError(f"{args.out} already holds {held} grasps: pass --append to add to it, "
+                          f"or choose another --out")
     hand = Hand.load(args.hand)
     obj = load_object(args.object)
     workers = args.workers or default_workers()
@@ -112,8 +119,7 @@ def generate_cmd(args: argparse.Namespace, console: Console) -> int:
                                     backend=backend)
     table = dataset.from_fsg(res.grasps, hand.joint_names, hand.finger_names, results,
                              demo_id=demo.id if demo else "",
-                             attrs={"hand": hand.name, "seed": args.seed,
-                                    "protocol": args.validate, "backend": backend},
+                             attrs=_generate_provenance(args, hand.name, backend, demo),
                              split_rejected=results is not None)
     dataset.append(args.out, {obj.name: table})
     per = res.elapsed_s / len(res.grasps) if res.grasps else float("nan")
@@ -128,6 +134,21 @@ def generate_cmd(args: argparse.Namespace, console: Console) -> int:
         console.print(f"{args.validate}: {len(table)} of {len(results)} passed")
     console.print(f"wrote {args.out}")
     return 0
+
+
+def _generate_provenance(args: argparse.Namespace, hand: str, backend: str,
+                         demo: Demo | None) -> dict[str, object]:
+    """What made a ``generate`` table: every option as given (JSON), the hand, protocol,
+    seed and backend as their own attributes, and the demonstration itself (so ``dexaug arm
+    --grasps as-it-lies`` can rebuild its workspace)."""
+    from sim.demo import demo_to_json
+
+    options = {k: str(v) if isinstance(v, Path) else v for k, v in vars(args).items()
+               if k not in ("handler",) and not callable(v)}
+    return {"hand": hand, "seed": args.seed, "protocol": args.validate, "backend": backend,
+            "options": json.dumps(options, sort_keys=True, default=str),
+            "demo_source": str(demo.source) if demo is not None else "",
+            "demo": json.dumps(demo_to_json(demo)) if demo is not None else ""}
 
 
 def _augment_args(p: argparse.ArgumentParser) -> None:
