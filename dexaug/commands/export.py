@@ -1,7 +1,7 @@
 """Subcommand ``export``: a grasp dataset in a layout other tools read.
 
-The work is :mod:`augment.export`; this module picks the tables, the hand and the masses, and
-prints what was written.
+The work is :mod:`augment.export`; this module picks the tables, the hand, the masses and the
+object frames, and prints what was written.
 """
 
 from __future__ import annotations
@@ -12,28 +12,56 @@ from pathlib import Path
 from rich.console import Console
 from rich.text import Text
 
-from augment.export import FORMATS, REFERENCE_OBJECT_POSE
+from augment.export import FORMATS
 from dexaug.commands.registry import command
-from sim.errors import DexaugError
+from sim.errors import DexaugError, UsageError
 
 __all__ = ["export"]
 
+#: where the FSG authors' demonstrations are, in their object frames and in ours
+FSG_KEYFRAMES = ("handdata", "fsg_keyframes")
+
 
 def _export_args(p: argparse.ArgumentParser) -> None:
+    from sim.validate.config import SQUEEZE_CONVENTIONS
+
     p.add_argument("dataset", type=Path, help="a grasps.h5 written by augment/generate")
     p.add_argument("--format", choices=FORMATS, required=True,
                    help="dexgraspbench: one JSON line per grasp in the DexGraspBench reference "
                         "layout (palm body pose in the world, joints by name, pregrasp/squeeze); "
-                        "npz: every column of every table, for numpy.load")
-    p.add_argument("--out", type=Path, required=True, help="file to write (replaced atomically)")
+                        "npz: every column of every table, for numpy.load; fsg: the FSG authors' "
+                        "HDF5 (rh_palm pose in the object frame, their 22 joints, gws (N,1), "
+                        "float32); bodex: a folder of DexGraspBench per-grasp .npy files "
+                        "(pregrasp/grasp/squeeze qpos of its floating Shadow Hand, object pose)")
+    p.add_argument("--out", type=Path, required=True,
+                   help="file to write (replaced atomically); for bodex a folder (replaced "
+                        "whole, only if it is empty or an earlier bodex export)")
     p.add_argument("--object", help="only this object's table (default: every object)")
     p.add_argument("--rejected", action="store_true",
                    help="also the grasps that failed validation (their verdict says so); "
                         "default: only the main table")
-    p.add_argument("--object-pose", type=float, nargs=7, default=list(REFERENCE_OBJECT_POSE),
+    p.add_argument("--object-pose", type=float, nargs=7, default=None,
                    metavar=("X", "Y", "Z", "QW", "QX", "QY", "QZ"),
-                   help="dexgraspbench: the object frame in the world (metres, wxyz); default "
-                        "%(default)s, the reference file's")
+                   help="dexgraspbench, bodex: the object frame in the world (metres, wxyz); "
+                        "default: dexgraspbench the reference file's (0 0 0.3 1 0 0 0), bodex "
+                        "DexGraspBench's examples' (the identity)")
+    p.add_argument("--object-frame", choices=("dexaug", "fsg-mesh"), default="dexaug",
+                   help="fsg: the object frame of the poses: dexaug's (the mesh origin of our "
+                        "objects) or fsg-mesh, the FSG authors' re-centred meshes (known for "
+                        "the objects of their demonstrations, ../shared/assets/handdata/"
+                        "fsg_keyframes: derived from their srh.txt and our frames of the same "
+                        "scenes); default %(default)s")
+    p.add_argument("--object-transform", type=float, nargs=7, default=None,
+                   metavar=("X", "Y", "Z", "QW", "QX", "QY", "QZ"),
+                   help="fsg, one object: our object's frame in the target object frame "
+                        "(metres, wxyz; as `demo import` takes it)")
+    p.add_argument("--squeeze-convention", choices=SQUEEZE_CONVENTIONS, default=None,
+                   help="bodex: how the pregrasp and squeeze of grasps the dataset has none "
+                        "for are made (as the validator makes them); default: "
+                        "configs/validate.toml [dgb] squeeze_convention")
+    p.add_argument("--object-root", default="assets/object",
+                   help="bodex: each file's obj_path is OBJECT_ROOT/<object>, where "
+                        "DexGraspBench finds the processed object; default %(default)s")
 
 
 def _tables(path: Path, name: str | None, rejected: bool) -> dict:
@@ -47,6 +75,15 @@ def _tables(path: Path, name: str | None, rejected: bool) -> dict:
     return {k: with_rejected(t) for k, t in tables.items()} if rejected else tables
 
 
+def _hand(path: Path, tables: dict):
+    from sim.hand.model import Hand
+
+    hands = {str(t.attrs.get("hand", "")) for t in tables.values()}
+    if len(hands) != 1 or not next(iter(hands)):
+        raise DexaugError(f"{path}: the tables name no single hand (attrs: {hands})")
+    return Hand.load(hands.pop())
+
+
 def _mass_kg(name: str) -> float | None:
     from sim.world.objects import load_object
 
@@ -56,27 +93,96 @@ def _mass_kg(name: str) -> float | None:
         return None
 
 
+def fsg_mesh_transforms(names: list[str]) -> dict[str, list[float]]:
+    """Our object frame in the FSG authors' re-centred mesh frame, for each object of ``names``:
+    their ``srh.txt`` places their object and our ``keyframes_shared_frames.json`` places ours
+    in the same scene, so T = T_world←theirs⁻¹ · T_world←ours."""
+    from dexaug.pipeline.keyframe_files import read_keyframes
+    from sim.paths import SHARED_ASSETS
+    from sim.transforms import pose_inv, pose_mul
+
+    folder = SHARED_ASSETS.joinpath(*FSG_KEYFRAMES)
+    ours = {k.object: k for k in read_keyframes(folder / "keyframes_shared_frames.json")}
+    theirs = {k.object: k for k in read_keyframes(folder / "srh.txt")}
+    out = {}
+    for name in names:
+        if name not in ours or name not in theirs:
+            raise UsageError(f"--object-frame fsg-mesh: no transform known for {name} ({folder} "
+                             f"has {', '.join(sorted(set(ours) & set(theirs)))}); give "
+                             "--object-transform with --object")
+        a, b = theirs[name], ours[name]
+        p, q = pose_mul(*pose_inv(a.object_pos_m, a.object_quat_wxyz), b.object_pos_m,
+                        b.object_quat_wxyz)
+        out[name] = [*map(float, p), *map(float, q)]
+    return out
+
+
+def _refuse_options(args: argparse.Namespace) -> None:
+    """Options that mean nothing for the chosen format are refused rather than ignored."""
+    allowed = {"dexgraspbench": {"object_pose"}, "npz": set(),
+               "fsg": {"object_frame", "object_transform"},
+               "bodex": {"object_pose", "squeeze_convention", "object_root"}}[args.format]
+    given = {"object_pose": args.object_pose is not None,
+             "object_frame": args.object_frame != "dexaug",
+             "object_transform": args.object_transform is not None,
+             "squeeze_convention": args.squeeze_convention is not None,
+             "object_root": args.object_root != "assets/object"}
+    bad = [k for k, v in given.items() if v and k not in allowed]
+    if bad:
+        raise UsageError(f"--{bad[0].replace('_', '-')} does not apply to --format {args.format}")
+
+
 @command("export", _export_args)
 def export(args: argparse.Namespace, console: Console) -> int:
-    """Export a grasp dataset: DexGraspBench's reference JSONL layout or a flat .npz.
+    """Export a grasp dataset: DexGraspBench's reference JSONL, a flat .npz, the FSG authors'
+    HDF5 or DexGraspBench/BODex per-grasp files.
 
     The dexgraspbench layout is the one of ../shared/reference/dexgraspbench/grasps.jsonl: the
     hand's palm body pose and the object pose in the world, q_grasp / q_pregrasp / q_squeeze by
     joint name, plus dexaug's verdict; reading the shared reference file and writing it back
-    gives its poses and angles to 1e-9 (tests/test_export.py).
+    gives its poses and angles to 1e-9 (tests/test_export.py). fsg and bodex convert our
+    frame_palm and 24 joints to their rh_palm-based poses and 22 joints (augment.export.fsg,
+    augment.export.bodex; tests/test_export_fsg.py, tests/test_export_bodex.py).
     """
-    from augment.export import write_dexgraspbench, write_npz
-    from sim.hand.model import Hand
+    from augment import export as ex
 
+    _refuse_options(args)
     tables = _tables(args.dataset, args.object, args.rejected)
+    source = str(args.dataset)
+    note = ""
     if args.format == "npz":
-        n = write_npz(args.out, tables)
-    else:
-        hands = {str(t.attrs.get("hand", "")) for t in tables.values()}
-        if len(hands) != 1 or not next(iter(hands)):
-            raise DexaugError(f"{args.dataset}: the tables name no single hand (attrs: {hands})")
+        n = ex.write_npz(args.out, tables)
+    elif args.format == "dexgraspbench":
         masses = {k: m for k in tables if (m := _mass_kg(k)) is not None}
-        n = write_dexgraspbench(args.out, tables, Hand.load(hands.pop()),
-                                object_pose_world=args.object_pose, masses_kg=masses)
-    console.print(Text(f"wrote {n} grasps of {len(tables)} object(s) to {args.out} ({args.format})"))
+        n = ex.write_dexgraspbench(args.out, tables, _hand(args.dataset, tables),
+                                   object_pose_world=args.object_pose or ex.REFERENCE_OBJECT_POSE,
+                                   masses_kg=masses, source=source)
+    elif args.format == "fsg":
+        if args.object_transform is not None and (len(tables) != 1 or
+                                                  args.object_frame != "dexaug"):
+            raise UsageError("--object-transform: one object only (--object), and not with "
+                             "--object-frame fsg-mesh")
+        transforms = ({next(iter(tables)): args.object_transform}
+                      if args.object_transform is not None
+                      else fsg_mesh_transforms(list(tables))
+                      if args.object_frame == "fsg-mesh" else None)
+        done = ex.write_fsg(args.out, tables, _hand(args.dataset, tables),
+                            object_transforms=transforms, source=source)
+        n = done.grasps
+        note = _dropped_note(done.dropped_moved)
+    else:
+        done = ex.write_bodex(args.out, tables, _hand(args.dataset, tables),
+                              object_pose_world=args.object_pose or ex.IDENTITY_POSE,
+                              object_root=args.object_root,
+                              squeeze_convention=args.squeeze_convention, source=source)
+        n = done.grasps
+        note = "; stages: " + ", ".join(f"{k} {v}" for k, v in sorted(done.stages.items()))
+        note += _dropped_note(done.dropped_moved)
+    console.print(Text(f"wrote {n} grasps of {len(tables)} object(s) to {args.out} "
+                       f"({args.format}){note}"))
     return 0
+
+
+def _dropped_note(moved: int) -> str:
+    return ("" if not moved else f"; {moved} grasps had the wrist off 0: its angles are dropped "
+            "(their hand has no wrist; rh_palm and the fingers are exact)")

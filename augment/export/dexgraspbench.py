@@ -1,11 +1,8 @@
-"""Grasp datasets in layouts other tools read (``dexaug export``): DexGraspBench's reference
-JSONL and a flat NumPy ``.npz``.
+"""``dexgraspbench``: DexGraspBench's reference JSONL, one JSON object per grasp.
 
-Why: a dataset is only useful in the field if the tools people already run can read it.
-
-``dexgraspbench``: one JSON object per grasp, the layout of the benchmark reference this project
-is measured against (``../shared/reference/dexgraspbench/grasps.jsonl``, its README): ``object``,
-``index``, ``object_mass_kg_real``, ``object_pose_world`` and ``<palm body>_pose_world``
+The layout of the benchmark reference this project is measured against
+(``../shared/reference/dexgraspbench/grasps.jsonl``, its README): ``object``, ``index``,
+``object_mass_kg_real``, ``object_pose_world`` and ``<palm body>_pose_world``
 (``[x, y, z, qw, qx, qy, qz]``; the palm *body* of the hand config, ``rh_palm`` for the Shadow
 Hand, not frame_palm), ``q_grasp``, ``q_pregrasp``, ``q_squeeze`` (radians by joint name), plus
 ``dexaug`` with our verdict (``passed``, ``failure``, ``stages_made_by``). The object frame is the
@@ -15,12 +12,6 @@ origin). A grasp the validator never simulated has no pregrasp or squeeze: those
 reference file with the reader the ``dgb`` agreement uses, writes it back through this module
 and gets every pose and joint angle of the 300 lines back (1e-9), and reads an export of a
 generated dataset back into the same grasps.
-
-``npz``: every column of every object's table under ``<object>/<column>`` (contacts flat with
-their offsets, as in the HDF5), with ``<object>/joint_names`` and ``<object>/finger_names``;
-``numpy.load`` reads it with no dexaug installed.
-
-Files are written atomically (:func:`sim.io.atomic_path`). Units: metres, radians.
 """
 
 from __future__ import annotations
@@ -33,14 +24,12 @@ from typing import Any
 import numpy as np
 
 from augment.dataset import ObjectTable
+from augment.export.foreign import need_columns, same_joints
 from sim.hand.model import Hand
-from sim.io import atomic_path, write_bytes_atomic
+from sim.io import write_bytes_atomic
 from sim.transforms import pose_inv, pose_mul
 
-__all__ = ["FORMATS", "REFERENCE_OBJECT_POSE", "dexgraspbench_rows", "write_dexgraspbench",
-           "write_npz"]
-
-FORMATS: tuple[str, ...] = ("dexgraspbench", "npz")
+__all__ = ["REFERENCE_OBJECT_POSE", "dexgraspbench_rows", "write_dexgraspbench"]
 
 #: Where the reference file puts every object: 0.3 m above the world origin, unrotated.
 REFERENCE_OBJECT_POSE: tuple[float, ...] = (0.0, 0.0, 0.3, 1.0, 0.0, 0.0, 0.0)
@@ -61,10 +50,12 @@ def _text(column: np.ndarray | None, i: int) -> str:
 
 def dexgraspbench_rows(table: ObjectTable, hand: Hand, object_name: str, *,
                        object_pose_world: Sequence[float] = REFERENCE_OBJECT_POSE,
-                       object_mass_kg: float | None = None) -> list[dict[str, Any]]:
+                       object_mass_kg: float | None = None,
+                       source: str = "dataset") -> list[dict[str, Any]]:
     """One reference-layout row per grasp of ``table`` (module docstring)."""
-    if tuple(table.joint_names) != tuple(hand.joint_names):
-        raise ValueError(f"{object_name}: the table's joints are not hand {hand.name!r}'s")
+    where = f"{source}: {object_name}"
+    need_columns(table, ("palm_pose", "hand_pose"), where, "dexgraspbench")
+    same_joints(table, hand, where)
     pose = np.asarray(object_pose_world, float)
     obj_p, obj_q = pose[:3], pose[3:] / np.linalg.norm(pose[3:])
     cfg = hand.config.palm
@@ -93,26 +84,14 @@ def dexgraspbench_rows(table: ObjectTable, hand: Hand, object_name: str, *,
 
 def write_dexgraspbench(path: Path | str, tables: Mapping[str, ObjectTable], hand: Hand, *,
                         object_pose_world: Sequence[float] = REFERENCE_OBJECT_POSE,
-                        masses_kg: Mapping[str, float] | None = None) -> int:
+                        masses_kg: Mapping[str, float] | None = None,
+                        source: str = "dataset") -> int:
     """Write every table's rows (object by object) as JSON lines to ``path``; the row count."""
     lines = []
     for name, table in tables.items():
         mass = None if masses_kg is None else masses_kg.get(name)
         lines += [json.dumps(r) for r in dexgraspbench_rows(
-            table, hand, name, object_pose_world=object_pose_world, object_mass_kg=mass)]
+            table, hand, name, object_pose_world=object_pose_world, object_mass_kg=mass,
+            source=source)]
     write_bytes_atomic(path, ("\n".join(lines) + "\n" if lines else "").encode())
     return len(lines)
-
-
-def write_npz(path: Path | str, tables: Mapping[str, ObjectTable]) -> int:
-    """Write every column of every table to one ``.npz`` (module docstring); the grasp count."""
-    arrays: dict[str, np.ndarray] = {}
-    for name, table in tables.items():
-        for col, values in table.columns.items():
-            arrays[f"{name}/{col}"] = np.asarray(values if values.dtype != object
-                                                 else values.astype(str))
-        arrays[f"{name}/joint_names"] = np.array(table.joint_names)
-        arrays[f"{name}/finger_names"] = np.array(table.finger_names)
-    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
-        np.savez(fh, **arrays)
-    return sum(len(t) for t in tables.values())
