@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from foxglove import messages as fm
 from mcap.reader import make_reader
 
 from teleop.messages import NUM_JOINTS, HandFrame, HandState, encode
@@ -178,10 +179,15 @@ def test_foxglove_schemas_and_mcap_interop(tmp_path: Path) -> None:
                      "/contacts": "dexaug.Contacts", "/events": "dexaug.Event",
                      "/tf": "foxglove.FrameTransforms", "/markers": "foxglove.SceneUpdate",
                      "/view": "foxglove.CompressedImage"}
+    sdk = {"/tf": fm.FrameTransforms, "/markers": fm.SceneUpdate, "/view": fm.CompressedImage}
     for topic, ch in s.channels.items():
         if ch.schema_encoding == "jsonschema":
             assert ch.message_encoding == "json"
             assert json.loads(ch.schema_data)["title"] == ch.schema_name, topic
+        elif topic in sdk:   # the SDK's own schema, byte for byte, and its encoding
+            schema = sdk[topic].get_schema()
+            assert (ch.schema_encoding, ch.message_encoding) == ("protobuf", "protobuf")
+            assert (ch.schema_name, ch.schema_data) == (schema.name, bytes(schema.data))
         else:
             assert b"Wire layout" in ch.schema_data
     # the official reader, indexed path with CRC checks, sees the same file

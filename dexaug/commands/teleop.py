@@ -25,6 +25,10 @@ from dexaug.commands.options import hand_arg
 from dexaug.commands.registry import command
 from sim.errors import NetworkError, UsageError
 
+#: ``bridge --foxglove``'s defaults (teleop.bridge.foxglove_live's, not imported at start-up:
+#: the SDK loads only when the server is asked for)
+FOXGLOVE_HOST, FOXGLOVE_PORT = "127.0.0.1", 8765
+
 if TYPE_CHECKING:
     from dexaug.pipeline.augment_queue import AugmentQueue
 
@@ -205,6 +209,16 @@ def _bridge_args(p: argparse.ArgumentParser) -> None:
     from teleop.input.access import add_listen_args
 
     add_listen_args(p, prefix="web-")
+    p.add_argument("--foxglove", action="store_true",
+                   help="also serve the live hand, object, contacts, head camera and state to the "
+                   "Foxglove app (foxglove-sdk WebSocket server; layout: "
+                   "configs/foxglove/dexaug_layout.json)")
+    p.add_argument("--foxglove-host", default=FOXGLOVE_HOST,
+                   help="address of the Foxglove server: loopback only, as the SDK's server "
+                   "cannot require a per-start token (another machine: an SSH tunnel); default "
+                   "%(default)s")
+    p.add_argument("--foxglove-port", type=free_port, default=FOXGLOVE_PORT,
+                   help="port of the Foxglove server (0: any free port); default %(default)s")
     p.add_argument("--auto-augment", action="store_true",
                    help="augment each recording as soon as it is stopped (`dexaug augment` in a "
                    "background process, one at a time in a bounded queue, so the bridge keeps "
@@ -229,6 +243,7 @@ def bridge(args: argparse.Namespace, console: Console) -> int:
     from teleop.bridge.main import bridge_main
 
     require_free_port("--listen", args.listen)   # before seconds of loading the hand and scene
+    foxglove = _foxglove_address(args) if args.foxglove else None
     hook = (_auto_augment(args.augment_out, console, ("--n", str(args.augment_n)))
             if args.auto_augment else None)
     with contextlib.ExitStack() as opened:   # whatever starts is closed, on any failure too
@@ -242,10 +257,27 @@ def bridge(args: argparse.Namespace, console: Console) -> int:
                                duration_s=args.duration, record=args.record,
                                view=False if args.no_view else None,
                                object_mode=args.object_mode, object_rest=args.object_rest,
-                               object_yaw_deg=args.object_yaw_deg, on_recording_closed=hook)
+                               object_yaw_deg=args.object_yaw_deg, on_recording_closed=hook,
+                               foxglove=foxglove, on_foxglove=lambda live: console.print(Text(
+                                   f"Foxglove: open {live.url} (or {live.app_url()})"),
+                                   soft_wrap=True))
         except zenoh.ZError as exc:   # e.g. --listen taken by another process in the meantime
             raise NetworkError(f"zenoh failed (bridge --listen {args.listen}): "
                                f"{zenoh_message(exc)}") from None
+
+
+def _foxglove_address(args: argparse.Namespace) -> tuple[str, int]:
+    """``--foxglove-host``/``--foxglove-port``, checked before the bridge loads: a host off
+    loopback is a usage error (teleop.bridge.foxglove_live), a taken port a network error."""
+    from teleop.bridge.foxglove_live import check_host
+
+    try:
+        host = check_host(args.foxglove_host)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+    if args.foxglove_port:
+        require_free_port("--foxglove-port", args.foxglove_port, host)
+    return host, args.foxglove_port
 
 
 def _start_web_ingest(args: argparse.Namespace, console: Console,

@@ -32,8 +32,10 @@ sim time, simulated and retargeted qpos, palm and object poses, hand–object co
 and assist, :mod:`teleop.bridge.grasp_assist`) at most ``state_rate_hz`` and on each new frame;
 ``/view`` JPEG from a head-following camera (:mod:`teleop.bridge.view`) at ``view_rate_hz`` when
 GL works, rendered in its own thread from a copy of the data (:mod:`teleop.bridge.view_stream`);
-``/events`` JSON. Control: queryable ``dexaug/<rig>/control/**``, JSON in, JSON out (``{"ok":
-false, "error": ...}`` on failure; the commands: :mod:`teleop.bridge.control`).
+``/events`` JSON; with ``live`` (``bridge --foxglove``) the same steps and view on a Foxglove
+WebSocket server (:mod:`teleop.bridge.foxglove_live`). Control: queryable
+``dexaug/<rig>/control/**``, JSON in, JSON out (``{"ok": false, "error": ...}`` on failure; the
+commands: :mod:`teleop.bridge.control`).
 
 World layout: the scene's table top is z = 0; the operator's tracking space (local-floor, z up)
 is shifted by ``world_offset_m`` (default 0.8 m down: a table top at a standing operator's
@@ -68,6 +70,7 @@ from teleop import keys as zkeys
 from teleop.bridge.config import BridgeConfig, check_object_mode, hand_servos, load_bridge_config
 from teleop.bridge.control import BridgeControl
 from teleop.bridge.faults import BridgeFaults
+from teleop.bridge.foxglove_live import FoxgloveLive
 from teleop.bridge.scene_contacts import contact_records, tip_finger_bodies
 from teleop.bridge.view_stream import ViewStream, gl_backend, head_pose
 from teleop.messages import MAGIC, SCHEMA_VERSION, HandFrame, MessageError, decode
@@ -130,6 +133,7 @@ class Bridge(BridgeFaults, BridgeControl):
         self._last_contacts: list[ContactRecord] = []
         self._thread_loop: threading.Thread | None = None
         self.loop_running = False
+        self.live: FoxgloveLive | None = None   # set by whoever starts one; they close it
 
         self._own_session = session is None
         self.session = session or zkeys.open_session(listen_port, list(connect_ports))
@@ -283,8 +287,12 @@ class Bridge(BridgeFaults, BridgeControl):
         self._pub_state.put(json.dumps(msg).encode())
         with self._lock:
             self.counts["states"] += 1
+        extra = {"q_target": msg["q_target"], "held": held, **self.grasp_state}
+        if self.live is not None:   # bridge --foxglove (teleop.bridge.foxglove_live)
+            self.live.publish_step(sc, contacts, t_s=self.sim_time_s, seq=self._last_seq,
+                                   tracked=not held, object_name=self.object_name, extra=extra,
+                                   operator=self._last_frame)
         if self._recorder is not None:  # one step, one clock: the same t_s, seq and log time
-            extra = {"q_target": msg["q_target"], "held": held, **self.grasp_state}
             t_ns = time.time_ns()
             self._record("write_state", qpos, palm_p, palm_q, obj_p, obj_q, t_s=self.sim_time_s,
                          seq=self._last_seq, tracked=not held, object_name=self.object_name,
@@ -357,20 +365,6 @@ class Bridge(BridgeFaults, BridgeControl):
             self._thread_loop.join(10.0)
             self._thread_loop = None
 
-    def wait_idle(self, timeout_s: float = 10.0, *, received: int | None = None) -> bool:
-        """Wait until ``received`` /hands samples arrived (if given) and every accepted frame was
-        processed or superseded (tests, offline reprocessing). False on timeout."""
-        t_end = time.perf_counter() + timeout_s
-        while time.perf_counter() < t_end:
-            with self._lock:
-                c = self.counts
-                arrived = received is None or c["received"] >= received
-                done = c["accepted"] == c["processed"] + c["superseded"]
-                if arrived and done and not self._queue and self._latest is None:
-                    return True
-            time.sleep(0.002)
-        return False
-
     def close(self) -> None:
         """Stop the loop and the view, close a recording, undeclare, close an owned session."""
         self.stop()
@@ -398,3 +392,5 @@ class Bridge(BridgeFaults, BridgeControl):
         with self._lock:
             self.counts["views"] += 1
         self._record("write_view", jpeg)
+        if self.live is not None:
+            self.live.publish_view(jpeg)

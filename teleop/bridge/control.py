@@ -53,7 +53,7 @@ import logging
 import queue
 import threading
 import time
-from collections import Counter
+from collections import Counter, deque
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -76,6 +76,7 @@ from teleop.bridge.object_mode import (
 )
 from teleop.bridge.remote_args import calibration_seconds, recording_file, remote_args
 from teleop.bridge.view_stream import ViewStream
+from teleop.messages import HandFrame
 from teleop.record.contact_record import ContactRecord
 from teleop.record.recorder import SessionRecorder
 from teleop.record.session_file import RecordingFailed
@@ -123,6 +124,8 @@ class BridgeControl:
     loop_running: bool
     _lock: threading.Lock
     _wake: threading.Event
+    _queue: deque[tuple[HandFrame, float]]
+    _latest: tuple[HandFrame, float] | None
     _controls: queue.Queue[_Pending]
     _recorder: SessionRecorder | None
     _recording_path: Path | None
@@ -332,6 +335,20 @@ class BridgeControl:
                    **{k: v for k, v in args.items() if k not in ("object", "seq")}}
         self._event("grasp_mark", payload)
         return {"fingers": fingers}
+
+    def wait_idle(self, timeout_s: float = 10.0, *, received: int | None = None) -> bool:
+        """Wait until ``received`` /hands samples arrived (if given) and every accepted frame was
+        processed or superseded (tests, offline reprocessing). False on timeout."""
+        t_end = time.perf_counter() + timeout_s
+        while time.perf_counter() < t_end:
+            with self._lock:
+                c = self.counts
+                arrived = received is None or c["received"] >= received
+                done = c["accepted"] == c["processed"] + c["superseded"]
+                if arrived and done and not self._queue and self._latest is None:
+                    return True
+            time.sleep(0.002)
+        return False
 
     def status(self) -> dict[str, Any]:
         """Counters and settings (answered from the zenoh thread: never waits for the loop)."""

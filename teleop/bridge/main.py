@@ -2,18 +2,20 @@
 
 Why a module of its own: the command-line entry point owns the process-level choices (the
 config file, the listening port, the object mode, recording from the start, a hook after each
-recording) and
-the Ctrl-C handling, none of which a bridge used as a library (rerecording, tests) wants.
+recording, the live Foxglove server) and the Ctrl-C handling, none of which a bridge used as a
+library (rerecording, tests) wants.
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
 from collections.abc import Callable
 from pathlib import Path
 
 from teleop.bridge.bridge import Bridge
 from teleop.bridge.config import check_object_mode, load_bridge_config
+from teleop.bridge.foxglove_live import FoxgloveLive
 
 __all__ = ["bridge_main"]
 
@@ -26,19 +28,32 @@ def bridge_main(hand: str, obj: str | None = None, rig: str = "local", *,
                 record: Path | str | None = None, view: bool | None = None,
                 object_mode: str | None = None, object_rest: int | None = None,
                 object_yaw_deg: float | None = None,
-                on_recording_closed: Callable[[Path], None] | None = None) -> int:
+                on_recording_closed: Callable[[Path], None] | None = None,
+                foxglove: tuple[str, int] | None = None,
+                on_foxglove: Callable[[FoxgloveLive], None] | None = None) -> int:
     """``dexaug bridge``: run a bridge until Ctrl-C (or ``duration_s``); ``object_mode``
     ("demo" or "free") overrides the config's; ``object_rest`` lays the object in that resting
     pose (:mod:`sim.world.resting`, best first; ``object_yaw_deg`` about the table normal);
     ``record`` starts a recording at that path right away; ``on_recording_closed(path)`` runs
-    after each recording is closed (e.g. to augment it). Returns a process exit code."""
+    after each recording is closed (e.g. to augment it); ``foxglove`` (host, port) serves the
+    live state on a Foxglove WebSocket server (:mod:`teleop.bridge.foxglove_live`, loopback
+    only), handed to ``on_foxglove`` once it listens. Returns a process exit code."""
     cfg = load_bridge_config(config_path)
     if view is not None:
         cfg.view_enabled = view
     if object_mode is not None:
         cfg.object_mode = check_object_mode(object_mode, "--object-mode")
     with Bridge(hand, obj, rig, cfg, listen_port=listen_port, connect_ports=tuple(connect_ports),
-                on_recording_closed=on_recording_closed) as bridge:
+                on_recording_closed=on_recording_closed) as bridge, \
+            contextlib.ExitStack() as opened:   # the live server stops before the bridge closes
+        if foxglove is not None:
+            bridge.live = FoxgloveLive(host=foxglove[0], port=foxglove[1], name=f"dexaug {rig}",
+                                       fingers=bridge.hand.finger_names,
+                                       world_offset_m=cfg.world_offset_m)
+            opened.callback(bridge.live.close)
+            logger.info("Foxglove live server on %s", bridge.live.url)
+            if on_foxglove is not None:
+                on_foxglove(bridge.live)
         if object_rest is not None:
             rest = {"rest": object_rest, **({} if object_yaw_deg is None
                                             else {"yaw_deg": object_yaw_deg})}

@@ -9,7 +9,7 @@ its contact faces on. Units: metres, unit normals from the hand into the object,
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -18,7 +18,7 @@ import numpy as np
 from sim import transforms
 from teleop.record.schemas import finite_list
 
-__all__ = ["ContactRecord"]
+__all__ = ["ContactRecord", "contacts_payload"]
 
 Array = np.ndarray
 
@@ -96,3 +96,10 @@ class ContactRecord:
                    normal_hand_body=arr("normal_hand_body"), dist_m=num("dist_m"),
                    force_n=num("force_n"))
 
+
+def contacts_payload(contacts: Sequence[ContactRecord], *, t_s: float, seq: int | None,
+                     object_name: str | None) -> dict[str, Any]:
+    """A ``/contacts`` payload (``dexaug.Contacts``, possibly with no contact); shared by the
+    recorder and the bridge's live Foxglove server, so both publish the same JSON."""
+    return {"t_s": float(t_s), "seq": None if seq is None else int(seq),
+            "contacts": [c.to_json() for c in contacts], "object": object_name}

@@ -48,6 +48,7 @@ def session_metadata(user: Mapping[str, Any], *, start_time_ns: int, own_clock: 
         "format_version": schemas.FORMAT_VERSION,
         "dexaug_version": _package_version("dexaug"),
         "mcap_version": _package_version("mcap"),
+        "foxglove_sdk_version": _package_version("foxglove-sdk"),   # the writer (recorder)
         "numpy_version": np.__version__,
         "mujoco_version": _package_version("mujoco"),
         "python_version": platform.python_version(),

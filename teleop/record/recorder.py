@@ -5,6 +5,17 @@ schema, see :mod:`teleop.record.schemas`) that replay, demo extraction and Foxgl
 (``/hands``) is kept bit-exact so a replay reproduces the session, and the simulation outputs
 (``/state``, ``/contacts``) are kept so demo extraction does not need to re-simulate.
 
+Writer: the official ``foxglove-sdk``'s MCAP writer (``foxglove.open_mcap`` on a context of the
+recorder's own), so the ``foxglove.*`` channels carry the SDK's schemas and encoding; it writes
+through :class:`~teleop.record.session_file.SessionFile`, which keeps the guarantees below.
+Its chunk-size trigger is off and every chunk is ended by :meth:`SessionRecorder.flush`'s policy
+(the SDK's ``flush`` ends the chunk, writes its message indexes and flushes). While a chunk is
+open the SDK streams its compressed bytes behind a chunk header whose length is still unset;
+such a tail reads as truncated (:mod:`teleop.record.mcap_scan`), so the guarantees are those of
+a writer that buffers the chunk in memory. The SDK stores a channel (and its schema) with the
+channel's first message; the session reader counts a topic of the layout that never had a
+message as 0.
+
 File policy: the recorder writes **in place** at ``path`` (no ``.part`` + rename). MCAP is
 append-only, so the file on disk is always a valid MCAP prefix; a killed recorder leaves a file
 that :func:`teleop.record.session.open_session` reads up to its last complete chunk (reporting
@@ -54,12 +65,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, Writer
+import foxglove as fx
+from foxglove import messages as fm
+from foxglove.mcap import MCAPCompression, MCAPWriteOptions
 
 from teleop import messages as hand_messages
 from teleop.record import foxglove, schemas
-from teleop.record.contact_record import ContactRecord
+from teleop.record.contact_record import ContactRecord, contacts_payload
 from teleop.record.foxglove import FrameTransform
 from teleop.record.metadata import encode_metadata, session_metadata
 from teleop.record.session import SessionError
@@ -69,12 +81,21 @@ __all__ = ["RecorderStats", "RecordingFailed", "SessionRecorder"]
 
 log = logging.getLogger(__name__)
 
-_COMPRESSION = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4,
-                "none": CompressionType.NONE}
+_COMPRESSION = {"zstd": MCAPCompression.Zstd, "lz4": MCAPCompression.Lz4, "none": None}
 #: Bytes a message adds to a chunk besides its data (record header + MCAP message fields).
 _MESSAGE_OVERHEAD = 9 + 22
 #: Event types only the recorder writes (at open and at close).
 _RECORDER_EVENTS = frozenset({"recording_started", "recording_stopped"})
+
+
+def _not_an_mcap_io_error(record: logging.LogRecord) -> bool:
+    """The SDK logs an MCAP sink's write error met inside ``log`` (multi-line, with a Python
+    traceback); the recorders are this process's MCAP sinks and each raises the same error as
+    one line (:class:`RecordingFailed`), so that duplicate is dropped."""
+    return not record.getMessage().startswith("error logging message: McapError(Io(")
+
+
+logging.getLogger("foxglove.log_sink_set").addFilter(_not_an_mcap_io_error)
 
 
 @dataclass
@@ -151,35 +172,30 @@ class SessionRecorder:
         self._pending_bytes = 0
         self._chunk_open_mono = 0.0
         self._chunk_first_log_ns = 0
-        self._sequence: Counter[str] = Counter()
 
         self._out = SessionFile(self.path, overwrite=overwrite)
-        self._file = self._out.stream
+        # Chunk boundaries are ours (size and time): the SDK's size trigger is off, so every
+        # chunk goes through flush(); its zstd runs in this thread (no compression threads)
+        options = MCAPWriteOptions(compression=_COMPRESSION[compression], profile="",
+                                   chunk_size=None, compression_threads=0)
+        self._context = fx.Context()   # the recorder's own: no other sink sees its channels
+        self._channels: dict[str, fx.Channel] = {}
         try:
-            # Chunk boundaries are ours (size and time), so the writer's own size trigger is
-            # off: every chunk then goes through flush(), which also hands the bytes to the OS.
-            self._writer = Writer(self._file, chunk_size=1 << 62,
-                                  compression=_COMPRESSION[compression], enable_data_crcs=True)
-            dexaug_version = self.metadata["dexaug_version"]
-            self._writer.start(profile="", library=f"dexaug/{dexaug_version} {LIBRARY_IDENTIFIER}")
-            self._channel_ids: dict[str, int] = {}
-            for spec in schemas.CHANNELS:
-                if spec.optional and not (spec.topic == schemas.TOPIC_VIEW and self.record_view):
-                    continue
-                schema_id = self._writer.register_schema(spec.schema_name, spec.schema_encoding,
-                                                         spec.schema_data)
-                self._channel_ids[spec.topic] = self._writer.register_channel(
-                    spec.topic, spec.message_encoding, schema_id,
-                    {"description": spec.description})
-            self._writer.add_metadata(schemas.METADATA_NAME, metadata_record)
-            self._file.flush()
+            with self._out.guard():
+                self._writer = fx.open_mcap(self._out, context=self._context,
+                                            writer_options=options)
+                for spec in schemas.CHANNELS:
+                    if not spec.optional or (spec.topic == schemas.TOPIC_VIEW and self.record_view):
+                        self._channels[spec.topic] = foxglove.sdk_channel(spec, self._context)
+                self._writer.write_metadata(schemas.METADATA_NAME, metadata_record)
+                self._out.flush()
             self._out.mark_good()
             self._write_event_unchecked("recording_started", {"path": str(self.path)},
                                         None, self.start_time_ns)
-        except (OSError, RecordingFailed) as exc:  # nothing recorded yet: leave no stub behind
+        except RecordingFailed:   # nothing recorded yet: leave no stub behind
             self._out.discard()
-            why = exc.strerror if isinstance(exc, OSError) else self._out.reason
-            raise SessionError(f"{self.path}: cannot write the recording: {why}") from None
+            raise SessionError(f"{self.path}: cannot write the recording: "
+                               f"{self._out.reason}") from None
         log.info("recording %s (chunks ≤ %d B or %.2f s, %s)", self.path, self.chunk_size,
                  self.flush_interval_s, compression)
 
@@ -205,9 +221,8 @@ class SessionRecorder:
         if not self._pending_topics:
             self._chunk_open_mono = time.monotonic()
             self._chunk_first_log_ns = log_time_ns
-        seq = self._sequence[topic]
-        self._sequence[topic] = (seq + 1) & 0xFFFFFFFF
-        self._writer.add_message(self._channel_ids[topic], log_time_ns, data, log_time_ns, seq)
+        with self._out.guard():   # the SDK may write compressed bytes of the open chunk now
+            self._channels[topic].log(data, log_time=log_time_ns)
         self._pending_topics[topic] += 1
         self._pending_bytes += len(data) + _MESSAGE_OVERHEAD
         self.stats.written[topic] += 1
@@ -222,9 +237,9 @@ class SessionRecorder:
             return
         t0 = time.perf_counter()
         with self._out.guard():
-            self._writer.flush()  # compresses the chunk, writes it + its message index, flushes
+            self._writer.flush()  # ends the chunk, writes its message indexes, flushes
             if self.fsync:
-                os.fsync(self._file.fileno())
+                os.fsync(self._out.stream.fileno())
         self.stats.flush_time_s += time.perf_counter() - t0
         self.stats.chunks += 1
         self.stats.flushed.update(self._pending_topics)
@@ -260,31 +275,20 @@ class SessionRecorder:
         """The bridge state on ``/state``: hand qpos (radians, order of ``joint_names``), palm
         and object poses in the world (metres, quaternions wxyz). With ``auto_tf`` the same
         poses go to ``/tf`` as world→palm and world→object."""
-        q = np.asarray(qpos, dtype=float).ravel()
-        if self.joint_names is not None and len(q) != len(self.joint_names):
-            raise ValueError(f"qpos has {len(q)} values, metadata joint_names has "
-                             f"{len(self.joint_names)}")
-        poses = {"palm_pos_m": (palm_pos_m, 3), "palm_quat_wxyz": (palm_quat_wxyz, 4),
-                 "object_pos_m": (object_pos_m, 3), "object_quat_wxyz": (object_quat_wxyz, 4)}
-        payload: dict[str, Any] = {}
-        for key, (value, n) in poses.items():
-            arr = np.asarray(value, dtype=float).ravel()
-            if arr.shape != (n,):
-                raise ValueError(f"{key} must have {n} values, got shape {np.shape(value)}")
-            payload[key] = schemas.finite_list(arr)
         with self._lock:
             t = self._now(log_time_ns)
-            payload.update(t_s=self._t_s(t_s, t), seq=None if seq is None else int(seq),
-                           tracked=bool(tracked), qpos=schemas.finite_list(q),
-                           object=object_name if object_name is not None else self.current_object,
-                           extra=dict(extra) if extra else {})
+            payload = schemas.state_payload(
+                qpos, palm_pos_m, palm_quat_wxyz, object_pos_m, object_quat_wxyz,
+                t_s=self._t_s(t_s, t), seq=seq, tracked=tracked,
+                object_name=object_name if object_name is not None else self.current_object,
+                extra=extra, joint_names=self.joint_names)
             self._add(schemas.TOPIC_STATE, schemas.dumps(payload), t)
             if self.auto_tf:
-                self._add(schemas.TOPIC_TF, schemas.dumps(foxglove.frame_transforms(
+                self._add(schemas.TOPIC_TF, foxglove.frame_transforms(
                     [FrameTransform(schemas.FRAME_WORLD, schemas.FRAME_PALM, palm_pos_m,
                                     palm_quat_wxyz),
                      FrameTransform(schemas.FRAME_WORLD, schemas.FRAME_OBJECT, object_pos_m,
-                                    object_quat_wxyz)], t)), t)
+                                    object_quat_wxyz)], t).encode(), t)
 
     def write_contacts(self, contacts: Sequence[ContactRecord], *, t_s: float | None = None,
                        seq: int | None = None, object_name: str | None = None,
@@ -294,17 +298,15 @@ class SessionRecorder:
         ``/markers`` (spheres coloured by finger, normal arrows scaled by force). ``t_s`` and
         ``seq`` are those of the ``/state`` of the same step: demo extraction pairs the two on
         them (module docstring)."""
-        items = [c.to_json() for c in contacts]
         with self._lock:
             t = self._now(log_time_ns)
-            payload = {"t_s": self._t_s(t_s, t), "seq": None if seq is None else int(seq),
-                       "contacts": items,
-                       "object": object_name if object_name is not None else self.current_object}
+            payload = contacts_payload(
+                contacts, t_s=self._t_s(t_s, t), seq=seq,
+                object_name=object_name if object_name is not None else self.current_object)
             self._add(schemas.TOPIC_CONTACTS, schemas.dumps(payload), t)
             if self.contact_markers:
                 entity = foxglove.contact_entity(contacts, t, fingers=self.fingers)
-                self._add(schemas.TOPIC_MARKERS,
-                          schemas.dumps(foxglove.scene_update([entity])), t)
+                self._add(schemas.TOPIC_MARKERS, foxglove.scene_update([entity]).encode(), t)
 
     def write_event(self, event_type: str, payload: Mapping[str, Any] | None = None, *,
                     t_s: float | None = None, log_time_ns: int | None = None) -> None:
@@ -335,19 +337,19 @@ class SessionRecorder:
         Foxglove), as ``foxglove.FrameTransforms``."""
         with self._lock:
             t = self._now(log_time_ns)
-            self._add(schemas.TOPIC_TF, schemas.dumps(foxglove.frame_transforms(transforms, t)), t)
+            self._add(schemas.TOPIC_TF, foxglove.frame_transforms(transforms, t).encode(), t)
 
-    def write_markers(self, scene_update: Mapping[str, Any], log_time_ns: int | None = None
+    def write_markers(self, scene_update: fm.SceneUpdate, log_time_ns: int | None = None
                       ) -> None:
         """A ``foxglove.SceneUpdate`` on ``/markers`` (build it with :mod:`teleop.record.foxglove`:
         :func:`~teleop.record.foxglove.scene_update`, :func:`~teleop.record.foxglove.model` for the
         object mesh, :func:`~teleop.record.foxglove.hand_skeleton_entity` for the operator's
         hand)."""
-        if "entities" not in scene_update and "deletions" not in scene_update:
-            raise ValueError("scene_update must be a foxglove.SceneUpdate dict (entities/"
-                             "deletions); see teleop.record.foxglove.scene_update")
+        if not isinstance(scene_update, fm.SceneUpdate):
+            raise ValueError("scene_update must be a foxglove.messages.SceneUpdate; see "
+                             "teleop.record.foxglove.scene_update")
         with self._lock:
-            self._add(schemas.TOPIC_MARKERS, schemas.dumps(scene_update), self._now(log_time_ns))
+            self._add(schemas.TOPIC_MARKERS, scene_update.encode(), self._now(log_time_ns))
 
     def write_view(self, jpeg: bytes, log_time_ns: int | None = None, *,
                    frame_id: str = "view") -> bool:
@@ -360,8 +362,7 @@ class SessionRecorder:
         with self._lock:
             t = self._now(log_time_ns)
             self._add(schemas.TOPIC_VIEW,
-                      schemas.dumps(foxglove.compressed_image(bytes(jpeg), t, frame_id=frame_id)),
-                      t)
+                      foxglove.compressed_image(bytes(jpeg), t, frame_id=frame_id).encode(), t)
         return True
 
     # --- lifecycle --------------------------------------------------------------------------------
@@ -381,13 +382,12 @@ class SessionRecorder:
                 t = time.time_ns() if self._own_clock else self._last_log_ns
                 self._write_event_unchecked("recording_stopped", {"reason": reason}, None, t)
                 with self._out.guard():
-                    self._writer.finish()
-                    self._file.flush()
-                    os.fsync(self._file.fileno())
-                self.stats.bytes_on_disk = self._file.tell()
+                    self._writer.close()   # the last chunk, summary and footer; flushed
+                    os.fsync(self._out.stream.fileno())
+                self.stats.bytes_on_disk = self._out.stream.tell()
             finally:
                 self._closed = True
-                self._file.close()
+                self._out.stream.close()
         log.info("recorded %s: %d messages, %d chunks, %d bytes", self.path,
                  sum(self.stats.written.values()), self.stats.chunks, self.stats.bytes_on_disk)
 

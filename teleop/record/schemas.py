@@ -1,39 +1,44 @@
 """Channels and schemas of a dexaug session recording (MCAP), defined in one place.
 
 Why one module: the recorder registers these channels, the session reader decodes them, replay
-and demo extraction consume them, and Foxglove displays them. If a topic name, a JSON field or a
-schema changed in one place only, old recordings would be silently misread; here every channel
-is a :class:`ChannelSpec` and :data:`FORMAT_VERSION` is bumped on any incompatible change.
+and demo extraction consume them, the bridge's live Foxglove server publishes them, and Foxglove
+displays them. If a topic name, a JSON field or a schema changed in one place only, old
+recordings would be silently misread; here every channel is a :class:`ChannelSpec` and
+:data:`FORMAT_VERSION` is bumped on any incompatible change.
 
-Channels (all registered upfront with a schema; ``/view`` only when view recording is on):
+Channels (each with its schema; the SDK's writer stores a channel with its first message, and
+``/view`` is kept only when view recording is on):
 
-==============  =========================  ===============  =====================================
-topic           schema name                message encoding payload
-==============  =========================  ===============  =====================================
-``/hands``      ``dexaug.HandFrame``       ``dexaug.hand-   raw input: the exact wire bytes of
-                (encoding ``dexaug-        frame.v1``       :func:`teleop.messages.encode` (the
-                layout``: the layout text)                  schema data is that layout, as text)
-``/state``      ``dexaug.State``           ``json``         hand qpos (radians, order of the
-                (jsonschema)                                metadata's ``joint_names``), palm and
-                                                            object poses in the world
-``/contacts``   ``dexaug.Contacts``        ``json``         hand–object contacts in the world,
-                (jsonschema)                                object and hand-body frames
-``/events``     ``dexaug.Event``           ``json``         recording started/stopped, grasp
-                (jsonschema)                                marks, object changes and resets
-``/tf``         ``foxglove.FrameTransforms`` ``json``       world→palm, world→object (+ any other
-                                                            frame the caller publishes)
-``/markers``    ``foxglove.SceneUpdate``   ``json``         contact spheres and force arrows, the
-                                                            object model, hand skeletons
-``/view``       ``foxglove.CompressedImage`` ``json``       the headset view (JPEG, base64 in
-                                                            JSON, as Foxglove's JSON schema says)
-==============  =========================  ===============  =====================================
+==============  ============================  =============  =================================
+topic           schema name                   message enc.   payload
+==============  ============================  =============  =================================
+``/hands``      ``dexaug.HandFrame``          ``dexaug.hand  raw input: the exact wire bytes of
+                (encoding ``dexaug-layout``:  frame.v1``     :func:`teleop.messages.encode`
+                the layout text)
+``/state``      ``dexaug.State`` (jsonschema) ``json``       hand qpos (radians, order of the
+                                                             metadata's ``joint_names``), palm
+                                                             and object poses in the world
+``/contacts``   ``dexaug.Contacts``           ``json``       hand–object contacts in the world,
+                (jsonschema)                                 object and hand-body frames
+``/events``     ``dexaug.Event`` (jsonschema) ``json``       recording started/stopped, grasp
+                                                             marks, object changes and resets
+``/tf``         ``foxglove.FrameTransforms``  ``protobuf``   world→palm, world→object (+ any
+                                                             other frame the caller publishes)
+``/markers``    ``foxglove.SceneUpdate``      ``protobuf``   contact spheres and force arrows,
+                                                             the object model, hand skeletons
+``/view``       ``foxglove.CompressedImage``  ``protobuf``   the headset view (JPEG)
+==============  ============================  =============  =================================
 
 Why these encodings: ``/hands`` keeps the raw bytes the bridge received, so a replay feeds the
-bridge bit-identical input (no float64→JSON→float32 round trip). Everything else is JSON with a
-JSON Schema: Foxglove decodes it without plugins, ``jq`` reads it, and at teleop rates (≤ 100 Hz,
-≤ 2 kB a message) its cost is negligible next to the simulation. The three ``foxglove.*``
-schemas are Foxglove's well-known schemas (field names from foxglove/schemas' ``jsonschema``
-folder), so a session opens in Foxglove's 3D and Image panels with no configuration.
+bridge bit-identical input (no float64→JSON→float32 round trip). Our own channels are JSON with
+a JSON Schema: Foxglove decodes it without plugins, ``jq`` reads it, demo extraction reads every
+recording ever made the same way, and at teleop rates (≤ 120 Hz, ≤ 2 kB a message) its cost is
+negligible next to the simulation. The ``foxglove.*`` channels are the official ``foxglove-sdk``'s
+messages, its schemas (:func:`foxglove_spec`: protobuf file descriptor sets, taken from the SDK,
+never copied) and its encoding, so a session opens in Foxglove's 3D and Image panels as the
+app expects and a JPEG is stored as bytes, not base64. Format 1 (older recordings) held the
+same three channels as JSON with hand-written copies of Foxglove's JSON schemas; the reader
+(:mod:`teleop.record.protobuf_payload`) gives both as the same JSON-shaped dicts.
 
 Conventions of the JSON payloads (DESIGN section 3): SI units with the unit in the field name
 (``_m`` metres, ``_s`` seconds, ``_n`` newtons, ``qpos`` radians), quaternions **wxyz** in our
@@ -52,19 +57,21 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from foxglove import messages as fm
 
 from teleop import messages as hand_messages
 
-__all__ = ["CHANNELS", "CHANNEL_BY_TOPIC", "COMPRESSED_IMAGE_SCHEMA", "CONTACTS_SCHEMA",
-           "EVENT_SCHEMA", "EVENT_TYPES", "FORMAT_VERSION", "FRAME_OBJECT", "FRAME_PALM",
-           "FRAME_TRANSFORMS_SCHEMA", "FRAME_WORLD", "HANDS_MESSAGE_ENCODING",
-           "HANDS_SCHEMA_ENCODING", "HANDS_SCHEMA_NAME", "JSON_KEYS_KEY", "JSON_TOPICS",
-           "METADATA_NAME", "SCENE_UPDATE_SCHEMA", "STATE_SCHEMA", "TOPIC_CONTACTS",
+__all__ = ["CHANNELS", "CHANNEL_BY_TOPIC", "CONTACTS_SCHEMA", "EVENT_SCHEMA", "EVENT_TYPES",
+           "FORMAT_VERSION", "FOXGLOVE_TOPICS", "FRAME_OBJECT", "FRAME_PALM", "FRAME_WORLD",
+           "HANDS_MESSAGE_ENCODING", "HANDS_SCHEMA_ENCODING", "HANDS_SCHEMA_NAME",
+           "JSON_KEYS_KEY", "JSON_TOPICS", "METADATA_NAME", "STATE_SCHEMA", "TOPIC_CONTACTS",
            "TOPIC_EVENTS", "TOPIC_HANDS", "TOPIC_MARKERS", "TOPIC_STATE", "TOPIC_TF",
-           "TOPIC_VIEW", "ChannelSpec", "dumps", "finite_list"]
+           "TOPIC_VIEW", "ChannelSpec", "dumps", "finite_list",
+           "foxglove_spec", "state_payload"]
 
-#: Version of the session layout (topics, schemas, metadata keys); readers check it.
-FORMAT_VERSION = 1
+#: Version of the session layout (topics, schemas, metadata keys); readers check it. 2: the
+#: ``foxglove.*`` channels are the SDK's protobuf messages (1: JSON; both are read).
+FORMAT_VERSION = 2
 #: Name of the session-level MCAP metadata record.
 METADATA_NAME = "dexaug.session"
 #: Metadata key listing the keys whose values are JSON (all others are plain strings).
@@ -189,100 +196,6 @@ EVENT_SCHEMA: dict[str, Any] = {
 }
 
 
-# --- Foxglove well-known JSON schemas -------------------------------------------------------------
-# Field names follow foxglove/schemas (schemas/jsonschema/*.json): FrameTransforms,
-# SceneUpdate (SceneEntity with arrows/cubes/spheres/cylinders/lines/triangles/texts/models),
-# CompressedImage. Trimmed of descriptions; Foxglove keys on the schema *name*, the JSON schema
-# documents the fields for other tools.
-
-_TIME = {"type": "object", "title": "time",
-         "properties": {"sec": {"type": "integer", "minimum": 0},
-                        "nsec": {"type": "integer", "minimum": 0, "maximum": 999999999}}}
-_DURATION = {"type": "object", "title": "duration",
-             "properties": {"sec": {"type": "integer"},
-                            "nsec": {"type": "integer", "minimum": 0, "maximum": 999999999}}}
-_VECTOR3 = _object({k: {"type": "number"} for k in "xyz"}, title="foxglove.Vector3")
-_POINT3 = _object({k: {"type": "number"} for k in "xyz"}, title="foxglove.Point3")
-_QUATERNION = _object({k: {"type": "number"} for k in "xyzw"}, title="foxglove.Quaternion")
-_COLOR = _object({k: {"type": "number"} for k in "rgba"}, title="foxglove.Color")
-_POSE = _object({"position": _VECTOR3, "orientation": _QUATERNION}, title="foxglove.Pose")
-
-
-def _array(items: dict[str, Any]) -> dict[str, Any]:
-    return {"type": "array", "items": items}
-
-
-FRAME_TRANSFORMS_SCHEMA: dict[str, Any] = _object({
-    "transforms": _array(_object({
-        "timestamp": _TIME,
-        "parent_frame_id": {"type": "string"},
-        "child_frame_id": {"type": "string"},
-        "translation": _VECTOR3,
-        "rotation": _QUATERNION,
-    }, title="foxglove.FrameTransform")),
-}, title="foxglove.FrameTransforms", description="An array of FrameTransform messages")
-
-_SCENE_ENTITY = _object({
-    "timestamp": _TIME,
-    "frame_id": {"type": "string"},
-    "id": {"type": "string"},
-    "lifetime": _DURATION,
-    "frame_locked": {"type": "boolean"},
-    "metadata": _array(_object({"key": {"type": "string"}, "value": {"type": "string"}},
-                               title="foxglove.KeyValuePair")),
-    "arrows": _array(_object({"pose": _POSE, "shaft_length": {"type": "number"},
-                              "shaft_diameter": {"type": "number"},
-                              "head_length": {"type": "number"},
-                              "head_diameter": {"type": "number"}, "color": _COLOR},
-                             title="foxglove.ArrowPrimitive")),
-    "cubes": _array(_object({"pose": _POSE, "size": _VECTOR3, "color": _COLOR},
-                            title="foxglove.CubePrimitive")),
-    "spheres": _array(_object({"pose": _POSE, "size": _VECTOR3, "color": _COLOR},
-                              title="foxglove.SpherePrimitive")),
-    "cylinders": _array(_object({"pose": _POSE, "size": _VECTOR3,
-                                 "bottom_scale": {"type": "number"},
-                                 "top_scale": {"type": "number"}, "color": _COLOR},
-                                title="foxglove.CylinderPrimitive")),
-    "lines": _array(_object({"type": {"type": "integer", "description":
-                                      "0 LINE_STRIP, 1 LINE_LOOP, 2 LINE_LIST"},
-                             "pose": _POSE, "thickness": {"type": "number"},
-                             "scale_invariant": {"type": "boolean"},
-                             "points": _array(_POINT3), "color": _COLOR,
-                             "colors": _array(_COLOR),
-                             "indices": _array({"type": "integer", "minimum": 0})},
-                            title="foxglove.LinePrimitive")),
-    "triangles": _array(_object({"pose": _POSE, "points": _array(_POINT3), "color": _COLOR,
-                                 "colors": _array(_COLOR),
-                                 "indices": _array({"type": "integer", "minimum": 0})},
-                                title="foxglove.TriangleListPrimitive")),
-    "texts": _array(_object({"pose": _POSE, "billboard": {"type": "boolean"},
-                             "font_size": {"type": "number"},
-                             "scale_invariant": {"type": "boolean"}, "color": _COLOR,
-                             "text": {"type": "string"}}, title="foxglove.TextPrimitive")),
-    "models": _array(_object({"pose": _POSE, "scale": _VECTOR3, "color": _COLOR,
-                              "use_embedded_materials": {"type": "boolean"},
-                              "url": {"type": "string"}, "media_type": {"type": "string"},
-                              "data": {"type": "string", "contentEncoding": "base64"}},
-                             title="foxglove.ModelPrimitive")),
-}, title="foxglove.SceneEntity")
-
-SCENE_UPDATE_SCHEMA: dict[str, Any] = _object({
-    "deletions": _array(_object({
-        "timestamp": _TIME,
-        "type": {"type": "integer", "description": "0 MATCHING_ID, 1 ALL"},
-        "id": {"type": "string"},
-    }, title="foxglove.SceneEntityDeletion")),
-    "entities": _array(_SCENE_ENTITY),
-}, title="foxglove.SceneUpdate", description="An update to the entities displayed in a 3D scene")
-
-COMPRESSED_IMAGE_SCHEMA: dict[str, Any] = _object({
-    "timestamp": _TIME,
-    "frame_id": {"type": "string"},
-    "data": {"type": "string", "contentEncoding": "base64"},
-    "format": {"type": "string", "description": "jpeg, png, webp or avif"},
-}, title="foxglove.CompressedImage", description="A compressed image")
-
-
 # --- channel specs --------------------------------------------------------------------------------
 
 
@@ -306,6 +219,15 @@ def _hands_layout() -> bytes:
             f" (see teleop/messages.py).\n\n{doc[start:] if start >= 0 else doc}").encode()
 
 
+def foxglove_spec(topic: str, message: type[Any], description: str, *,
+                  optional: bool = False) -> ChannelSpec:
+    """The channel of a ``foxglove-sdk`` message class (``foxglove.messages.FrameTransforms``,
+    …): its schema exactly as the SDK gives it, and the SDK's encoding (protobuf)."""
+    schema = message.get_schema()
+    return ChannelSpec(topic, schema.name, schema.encoding, bytes(schema.data), "protobuf",
+                       description, optional)
+
+
 CHANNELS: tuple[ChannelSpec, ...] = (
     ChannelSpec(TOPIC_HANDS, HANDS_SCHEMA_NAME, HANDS_SCHEMA_ENCODING, _hands_layout(),
                 HANDS_MESSAGE_ENCODING, "raw hand-tracking input (teleop.messages wire bytes)"),
@@ -315,18 +237,18 @@ CHANNELS: tuple[ChannelSpec, ...] = (
                 "json", "hand-object contacts"),
     ChannelSpec(TOPIC_EVENTS, "dexaug.Event", "jsonschema", _schema_bytes(EVENT_SCHEMA), "json",
                 "recording and operator events"),
-    ChannelSpec(TOPIC_TF, "foxglove.FrameTransforms", "jsonschema",
-                _schema_bytes(FRAME_TRANSFORMS_SCHEMA), "json", "world->palm, world->object"),
-    ChannelSpec(TOPIC_MARKERS, "foxglove.SceneUpdate", "jsonschema",
-                _schema_bytes(SCENE_UPDATE_SCHEMA), "json", "contacts, object, hand markers"),
-    ChannelSpec(TOPIC_VIEW, "foxglove.CompressedImage", "jsonschema",
-                _schema_bytes(COMPRESSED_IMAGE_SCHEMA), "json", "headset view (JPEG)",
-                optional=True),
+    foxglove_spec(TOPIC_TF, fm.FrameTransforms, "world->palm, world->object"),
+    foxglove_spec(TOPIC_MARKERS, fm.SceneUpdate, "contacts, object, hand markers"),
+    foxglove_spec(TOPIC_VIEW, fm.CompressedImage, "headset view (JPEG)", optional=True),
 )
 #: Topic → spec.
 CHANNEL_BY_TOPIC: dict[str, ChannelSpec] = {c.topic: c for c in CHANNELS}
-#: Topics whose payload is JSON.
-JSON_TOPICS: frozenset[str] = frozenset(c.topic for c in CHANNELS if c.message_encoding == "json")
+#: Topics of Foxglove's well-known messages.
+FOXGLOVE_TOPICS: frozenset[str] = frozenset(c.topic for c in CHANNELS
+                                            if c.schema_name.startswith("foxglove."))
+#: Topics whose payload the session reader gives as a JSON-shaped dict: our JSON channels, and the
+#: Foxglove ones (JSON in format 1, protobuf decoded to Foxglove's JSON form since format 2).
+JSON_TOPICS: frozenset[str] = frozenset(c.topic for c in CHANNELS if c.topic != TOPIC_HANDS)
 
 
 # --- payload helpers ------------------------------------------------------------------------------
@@ -342,3 +264,27 @@ def dumps(payload: Mapping[str, Any]) -> bytes:
     """Compact JSON bytes; raises ValueError on NaN/inf (use :func:`finite_list` first), so no
     file ever holds JSON that strict parsers (Foxglove's) reject."""
     return json.dumps(payload, separators=(",", ":"), allow_nan=False).encode("utf-8")
+
+
+def state_payload(qpos: Any, palm_pos_m: Any, palm_quat_wxyz: Any, object_pos_m: Any,
+                  object_quat_wxyz: Any, *, t_s: float, seq: int | None, tracked: bool,
+                  object_name: str | None, extra: Mapping[str, Any] | None,
+                  joint_names: Sequence[str] | None = None) -> dict[str, Any]:
+    """A ``/state`` payload (:data:`STATE_SCHEMA`); shared by the recorder and the bridge's live
+    Foxglove server so a layout's plots read a recording and the live bridge alike. Raises
+    ValueError when a pose has the wrong length or qpos does not match ``joint_names``."""
+    q = np.asarray(qpos, dtype=float).ravel()
+    if joint_names is not None and len(q) != len(joint_names):
+        raise ValueError(f"qpos has {len(q)} values, metadata joint_names has {len(joint_names)}")
+    poses = {"palm_pos_m": (palm_pos_m, 3), "palm_quat_wxyz": (palm_quat_wxyz, 4),
+             "object_pos_m": (object_pos_m, 3), "object_quat_wxyz": (object_quat_wxyz, 4)}
+    payload: dict[str, Any] = {}
+    for key, (value, n) in poses.items():
+        arr = np.asarray(value, dtype=float).ravel()
+        if arr.shape != (n,):
+            raise ValueError(f"{key} must have {n} values, got shape {np.shape(value)}")
+        payload[key] = finite_list(arr)
+    payload.update(t_s=float(t_s), seq=None if seq is None else int(seq), tracked=bool(tracked),
+                   qpos=finite_list(q), object=object_name, extra=dict(extra) if extra else {})
+    return payload
+

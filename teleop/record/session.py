@@ -17,7 +17,9 @@ so every byte of a complete file is covered by some check.
 
 Messages are yielded in file order, which is the order the recorder wrote them (log times per
 topic non-decreasing when the caller's clock is). Payloads are decoded by topic: ``/hands`` to
-:class:`teleop.messages.HandFrame`, JSON topics to dicts, anything else left as bytes. A
+:class:`teleop.messages.HandFrame`, JSON topics to dicts, protobuf ones (the ``foxglove.*``
+channels since format 2) to dicts of the same JSON form with the schema stored in the file
+(:mod:`teleop.record.protobuf_payload`), anything else left as bytes. A
 ``/state``, ``/contacts`` or ``/events`` payload that lacks a field its schema requires (or has
 a vector of the wrong length) raises :class:`SessionError` naming the message and the field, so
 consumers never meet a ``KeyError`` deep inside (``t_s`` may be absent: older recordings did not
@@ -42,7 +44,7 @@ from mcap.records import Chunk, Message
 
 from sim.errors import DexaugError
 from teleop import messages as hand_messages
-from teleop.record import schemas
+from teleop.record import protobuf_payload, schemas
 from teleop.record.mcap_scan import McapCorrupt, Scan, decompress_chunk, record_stream, scan_file
 from teleop.record.metadata import decode_metadata
 
@@ -116,7 +118,9 @@ class Session:
                 schema_data=schema.data if schema else b"", metadata=dict(ch.metadata))
             self._topic_by_id[cid] = ch.topic
         self.counts: dict[str, int] = {self._topic_by_id[c]: n for c, n in scan.counts.items()}
-        for topic in self.channels:
+        # the SDK's writer stores a channel with its first message: a topic of the layout that
+        # never had one counts 0, as in files that registered every channel upfront
+        for topic in [*self.channels, *(c.topic for c in schemas.CHANNELS if not c.optional)]:
             self.counts.setdefault(topic, 0)
         self.start_time_ns = scan.start_ns
         self.end_time_ns = scan.end_ns
@@ -188,6 +192,9 @@ class Session:
                 return hand_messages.decode(data)
             if channel.message_encoding == "json":
                 return json.loads(data)
+            if channel.message_encoding == "protobuf" and channel.schema_encoding == "protobuf":
+                return protobuf_payload.to_json_form(protobuf_payload.decode(
+                    channel.schema_name, channel.schema_data, data))
         except (hand_messages.MessageError, ValueError) as exc:
             raise SessionError(f"{self.path}: undecodable {topic} message in the chunk at offset "
                                f"{offset}: {exc}") from None
