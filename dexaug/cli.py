@@ -35,7 +35,7 @@ OWN_PACKAGES = ("dexaug", "sim", "augment", "teleop")
 #: assets and validation, the demo, capture, augmentation, the dashboard)
 COMMAND_MODULES = tuple(f"dexaug.commands.{m}" for m in (
     "assets", "validate", "demo", "workspace", "teleop", "repair", "augment", "batch", "arm",
-    "diagnose", "export", "stream", "ui"))
+    "diagnose", "export", "stream", "ui", "view"))
 
 
 def version_text() -> str:

@@ -48,7 +48,7 @@ from sim.io import atomic_path
 from sim.versions import package_versions
 from sim.world.objects import load_object
 
-__all__ = ["GRASP_SOURCES", "ArmRunSummary", "run_arm"]
+__all__ = ["GRASP_SOURCES", "ArmRunSummary", "run_arm", "table_demo"]
 
 #: how grasps reach the arm (module docstring)
 GRASP_SOURCES = ("carried", "as-it-lies")
@@ -107,7 +107,7 @@ def _columns(results: list[ArmGraspResult], n_arm: int) -> dict[str, np.ndarray]
     return cols
 
 
-def _table_demo(path: Path, name: str, table: dataset.ObjectTable) -> Demo | None:
+def table_demo(path: Path, name: str, table: dataset.ObjectTable) -> Demo | None:
     """The demonstration a table was augmented from (its ``demo`` provenance), None for a
     table made without one; a clear error for a demo-made table that does not keep it."""
     text = str(table.attrs.get("demo") or "")
@@ -156,7 +156,7 @@ def run_arm(grasps_path: Path, arm_name: str, out: Path, *, placements: int, see
         source: GraspSource = grasps
         if grasps_from == "as-it-lies":
             try:
-                demo = _table_demo(grasps_path, name, table)
+                demo = table_demo(grasps_path, name, table)
             except DemoError as exc:
                 raise DexaugError(str(exc)) from None
             source = RestGrasps(

@@ -21,6 +21,8 @@ import cv2
 import numpy as np
 
 from dexaug.pipeline.summary import DemoSummary, demo_grasp_text
+from dexaug.viewer.page import write_viewer
+from dexaug.viewer.scene import viewer_scene
 from sim.io import write_bytes_atomic
 from sim.world.render import gl_available, save_png
 
@@ -34,6 +36,9 @@ if TYPE_CHECKING:
 __all__ = ["palm_cloud_image", "write_report"]
 
 log = logging.getLogger(__name__)
+
+#: the interactive 3D viewer written beside the report (:mod:`dexaug.viewer`)
+VIEWER_PAGE = "viewer.html"
 
 
 def palm_cloud_image(object_points: np.ndarray, palm_positions: np.ndarray,
@@ -124,7 +129,8 @@ def _render(hand: Hand, obj: ObjectAsset, grasps: list[Grasp], folder: Path,
 
 def write_report(folder: Path, demo: Demo, hand: Hand, obj: ObjectAsset, table: ObjectTable,
                  summary: DemoSummary, object_points: np.ndarray, *, gallery: int = 6) -> Path:
-    """Write ``report.html`` and its PNGs into ``folder``; returns the HTML path.
+    """Write ``report.html``, its PNGs and the 3D viewer (``viewer.html``: every grasp of the
+    table, passed and rejected) into ``folder``; returns the HTML path.
     ``object_points`` (n, 3): the object cloud the palm positions are drawn around."""
     from sim.grasp import Grasp
 
@@ -134,6 +140,8 @@ def write_report(folder: Path, demo: Demo, hand: Hand, obj: ObjectAsset, table: 
     save_png(folder / "palm_cloud.png",
              palm_cloud_image(np.asarray(object_points), pose[:, :3],
                               demo_palm=np.asarray(demo.palm_pos_m), table=plane))
+    write_viewer(folder / VIEWER_PAGE, viewer_scene(table, hand, obj, demo=demo,
+                                                    title=f"{summary.demo_id}: {obj.name}"))
     images: list[tuple[str, str]] = []
     note = ""
     if gl_available() is not None:
@@ -192,8 +200,14 @@ def _html(demo: Demo, s: DemoSummary, images: list[tuple[str, str]], note: str) 
 <style>body{{font-family:sans-serif;margin:2em;max-width:1100px}}
 table{{border-collapse:collapse}}th,td{{border:1px solid #ccc;padding:4px 8px;text-align:left}}
 img{{border:1px solid #ddd}}figure{{display:inline-block;margin:6px;max-width:480px}}
-figcaption{{font-size:0.85em}}</style></head>
+figcaption{{font-size:0.85em}}
+iframe.viewer{{width:100%;height:640px;border:1px solid #ccc}}
+@media print{{.viewer{{display:none}}}}</style></head>
 <body><h1>Augmentation of {e(s.demo_id)}</h1>
+<section class="viewer"><h2>Every grasp in 3D</h2>
+<iframe class="viewer" src="{VIEWER_PAGE}" title="3D grasp viewer"></iframe>
+<p><a href="{VIEWER_PAGE}">Open the viewer on its own page</a> (filter by verdict, failure
+reason and fingers; the hand posed by the hand model's forward kinematics).</p></section>
 <h2>Demonstration</h2>{demo_img}{note}
 <p id="demo-grasp">Demonstration grasp: {e(demo_grasp_text(s.demo_grasp))}</p>
 <h2>Metrics</h2><table id="metrics">{table}</table>
