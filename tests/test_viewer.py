@@ -21,6 +21,7 @@ from dexaug.pipeline.options import AugmentOptions
 from dexaug.viewer.mesh_lod import within_budget
 from dexaug.viewer.scene import ViewerLimits, grasp_body_poses, hand_meshes, viewer_scene
 from sim.demo import load_demo
+from sim.hand.config import hand_names
 from tests.browser import artifact_path, chromium, new_page  # noqa: F401
 from tests.conftest import needs_menagerie, needs_ycb
 
@@ -54,6 +55,21 @@ def test_lighter_meshes_keep_their_budget_and_their_shape() -> None:
     np.testing.assert_allclose(np.linalg.norm(v, axis=1), 0.05, atol=0.004)  # still the sphere
     same_v, same_f = within_budget(mesh.vertices, mesh.faces, 30_000)
     assert np.array_equal(same_f, mesh.faces) and np.array_equal(same_v, mesh.vertices)
+
+
+@pytest.mark.parametrize("hand_name", hand_names())
+def test_every_hand_has_meshes_within_budget_on_every_moving_body(hand_name: str) -> None:
+    from sim.hand.model import Hand
+
+    hand = Hand.load(hand_name)
+    meshes = hand_meshes(hand, 20_000)
+    assert sum(len(f) for _, f, _ in meshes.values()) <= 20_000 + 12 * hand.model.ngeom
+    m = hand.model
+    drawn = {int(m.geom_bodyid[g]) for g in range(m.ngeom)
+             if m.geom_contype[g] == 0 and m.geom_conaffinity[g] == 0} or set(m.geom_bodyid)
+    assert drawn == set(meshes) and {int(b) for b in hand.tip_body_ids} <= set(meshes)
+    for v, f, c in meshes.values():
+        assert len(v) == len(c) and f.min() >= 0 and f.max() < len(v)
 
 
 def test_hand_poses_are_where_mujoco_puts_the_validated_grasp(shadow, result: Path) -> None:
