@@ -22,7 +22,7 @@ from dexaug.viewer.mesh_lod import within_budget
 from dexaug.viewer.scene import ViewerLimits, grasp_body_poses, hand_meshes, viewer_scene
 from sim.demo import load_demo
 from sim.hand.config import hand_names
-from tests.browser import artifact_path, chromium, new_page  # noqa: F401
+from tests.browser import artifact_path, new_page
 from tests.conftest import needs_menagerie, needs_ycb
 
 pytestmark = [needs_menagerie, needs_ycb]
@@ -114,7 +114,7 @@ def test_the_scene_lists_every_row_with_its_verdict(shadow, result: Path) -> Non
     assert small["grasps"]["contact_offsets"] == list(every["contact_offsets"][:4])
 
 
-def _open(chromium, path: Path, console: list[str], size=(1200, 760)):  # type: ignore[no-untyped-def]  # noqa: F811
+def _open(chromium, path: Path, console: list[str], size=(1200, 760)):  # type: ignore[no-untyped-def]
     page = new_page(chromium, https=False, console=console, viewport=size)
     page.goto(path.as_uri())
     page.wait_for_function("window.dexaugViewer && window.dexaugViewer.frames() > 0",
@@ -130,7 +130,7 @@ def _canvas_pixels(page) -> np.ndarray:  # type: ignore[no-untyped-def]
                         cv2.COLOR_BGR2RGB)
 
 
-def test_the_viewer_page_draws_filters_and_poses_the_grasps(chromium, shadow,  # noqa: F811
+def test_the_viewer_page_draws_filters_and_poses_the_grasps(chromium, shadow,
                                                             result: Path) -> None:
     console: list[str] = []
     table = _table(result)
@@ -180,7 +180,7 @@ def test_the_viewer_page_draws_filters_and_poses_the_grasps(chromium, shadow,  #
     assert not [c for c in console if c.startswith(("pageerror", "error"))], console
 
 
-def test_the_report_embeds_the_viewer(chromium, result: Path) -> None:  # noqa: F811
+def test_the_report_embeds_the_viewer(chromium, result: Path) -> None:
     console: list[str] = []
     page = new_page(chromium, https=False, console=console, viewport=(1200, 1400))
     page.goto((result / "report.html").as_uri())

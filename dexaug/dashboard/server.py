@@ -6,6 +6,9 @@ Routes::
     GET  /api/sessions          sessions, their demos (or why none), finished results, options
     GET  /api/jobs              every job: state, pipeline stage and progress, result or error
     POST /api/augment           {"demo": KEY} → queue KEY's augmentation; the job as JSON
+    POST /api/settings          {"n": N, "table": "demo"|"on"|"off", "validate": P|"none"}
+                                → the settings later augmentations use (dashboard.settings)
+    GET  /api/results           every result folder under the output folder (dashboard.results)
     POST /api/arm               {"demo": KEY, "arm": ARM, "placements": N} → queue putting
                                 KEY's finished result on ARM (arm_<ARM>.h5 in its folder)
     GET  /thumbnails/KEY.png    the demo grasp (a placeholder SVG without OpenGL)
@@ -47,6 +50,8 @@ from dexaug.dashboard.arm_jobs import ArmJob, parse_arm_request, run_arm_job
 from dexaug.dashboard.catalog import Catalog, result_view
 from dexaug.dashboard.guard import WILDCARDS, Guard
 from dexaug.dashboard.jobs import JobQueue, JobQueueFull, JobTarget, run_augmentation
+from dexaug.dashboard.results import list_results
+from dexaug.dashboard.settings import SettingsError, apply_settings, settings_json
 from dexaug.pipeline.arm_stage import DEFAULT_PLACEMENTS, MAX_PLACEMENTS
 from dexaug.pipeline.options import AugmentOptions
 from sim.errors import DexaugError
@@ -112,6 +117,8 @@ class Dashboard:
         app.add_routes([web.get("/", self._index), web.get("/favicon.ico", self._icon),
                         web.get("/api/sessions", self._sessions), web.get("/api/jobs", self._jobs),
                         web.post("/api/augment", self._augment), web.post("/api/arm", self._arm),
+                        web.post("/api/settings", self._settings),
+                        web.get("/api/results", self._results),
                         web.get("/thumbnails/{key}.png", self._thumbnail),
                         web.static("/static/", self._static),
                         web.static("/results/", self.config.out_root)])
@@ -198,7 +205,8 @@ class Dashboard:
                 "link_penetration": o.link_penetration,
                 "sessions_dir": str(self.config.sessions_dir),
                 "out_root": str(self.config.out_root), "arms": arm_names(),
-                "arm_placements": DEFAULT_PLACEMENTS, "arm_placements_max": MAX_PLACEMENTS}
+                "arm_placements": DEFAULT_PLACEMENTS, "arm_placements_max": MAX_PLACEMENTS,
+                "settings": settings_json(o)}
 
     def _job_json(self, job: dict[str, Any]) -> dict[str, Any]:
         # an arm job's result is already the page's view (run_arm_job)
@@ -223,6 +231,25 @@ class Dashboard:
 
     async def _jobs(self, _request: web.Request) -> web.Response:
         return web.json_response({"jobs": [self._job_json(j) for j in self.jobs.snapshot()]})
+
+    async def _settings(self, request: web.Request) -> web.Response:
+        """Change n, table mode or protocol for the augmentations queued from now on (jobs
+        already queued keep theirs); the listing then compares results with the new ones."""
+        try:
+            opts = apply_settings(await request.json(), self.config.options)
+        except ValueError:
+            return web.json_response({"error": "the body is not JSON"}, status=400)
+        except SettingsError as exc:
+            return web.json_response({"error": str(exc)}, status=400)
+        self.config = dataclasses.replace(self.config, options=opts)
+        self.catalog.opts = opts
+        log.info("dashboard settings: n %d, table %s, validate %s", opts.n, opts.table,
+                 opts.validate)
+        return web.json_response({"options": self._options_json()})
+
+    async def _results(self, _request: web.Request) -> web.Response:
+        results = await asyncio.to_thread(list_results, self.config.out_root)
+        return web.json_response({"results": results})
 
     async def _augment(self, request: web.Request) -> web.Response:
         try:

@@ -1,5 +1,6 @@
 // dexaug dashboard page: lists sessions and demos (/api/sessions), starts augmentations
-// (POST /api/augment) and puts finished results on an arm (POST /api/arm), and shows the
+// (POST /api/augment) with the settings chosen on the page (POST /api/settings), puts finished
+// results on an arm (POST /api/arm), lists every result folder (/api/results) and shows the
 // jobs' live progress by polling /api/jobs. No libraries.
 "use strict";
 
@@ -208,6 +209,7 @@ async function loadSessions() {
   document.getElementById("options").textContent =
     `sessions ${o.sessions_dir} · results ${o.out_root} · n ${o.n} · validate ` +
     `${o.validate || "none"} · workers ${o.workers} · gallery ${o.gallery} · seed ${o.seed}`;
+  showSettings(o.settings);
   showMessage(body.error);
   const root = document.getElementById("sessions");
   root.replaceChildren();
@@ -226,7 +228,54 @@ async function loadSessions() {
     root.append(box);
   }
   for (const key of demos.keys()) renderStatus(key);
+  await loadResults();
   document.body.dataset.loaded = "1";
+}
+
+// the settings form: n, table mode and protocol of the augmentations queued from now on
+function showSettings(st) {
+  const fill = (id, values, chosen) => {
+    const sel = document.getElementById(id);
+    sel.replaceChildren(...values.map((v) => el("option", { value: v, text: v })));
+    sel.value = chosen;
+  };
+  const n = document.getElementById("set-n");
+  n.max = String(st.n_max);
+  n.value = String(st.n);
+  fill("set-table", st.tables, st.table);
+  fill("set-validate", st.protocols, st.validate);
+}
+
+async function applySettings(ev) {
+  ev.preventDefault();
+  const body = { n: Number(document.getElementById("set-n").value),
+                 table: document.getElementById("set-table").value,
+                 validate: document.getElementById("set-validate").value };
+  const r = await api("/api/settings", { method: "POST", body: JSON.stringify(body),
+                                         headers: { "Content-Type": "application/json" } });
+  const reply = await r.json();
+  if (!r.ok) { showMessage(reply.error || `HTTP ${r.status}`); return; }
+  showMessage("");
+  await loadSessions();
+}
+
+// every result folder under the output folder, whatever made it (make demo, the CLI, jobs)
+async function loadResults() {
+  const r = await api("/api/results");
+  const body = await r.json();
+  const rows = body.results.map((x) => {
+    const link = (href, text) => (href ? el("a", { href, text }) : null);
+    const files = el("td", {}, link(x.report, "report"), x.report && x.viewer ? " · " : null,
+                     link(x.viewer, "3D view"));
+    if (x.error) {
+      return el("tr", { "data-folder": x.folder }, el("td", { text: x.folder }),
+                el("td", { class: "error", colspan: "6", text: x.error }), files);
+    }
+    const rate = x.pass_rate == null ? "—" : `${(100 * x.pass_rate).toFixed(1)} %`;
+    return el("tr", { "data-folder": x.folder }, ...[x.folder, x.demo, x.object, x.hand,
+              x.generated, x.passed, rate].map((v) => el("td", { text: String(v) })), files);
+  });
+  document.querySelector("#results tbody").replaceChildren(...rows);
 }
 
 async function poll() {
@@ -249,6 +298,7 @@ async function poll() {
         armFiles.set(job.key, (armFiles.get(job.key) || []).map((a) => ({ ...a, stale: true })));
       }
       if (changed) renderStatus(job.key);
+      if (changed && job.state === "done") loadResults().catch(() => {});
     }
     if (document.getElementById("message").textContent.startsWith("Lost")) showMessage("");
   } catch (e) {
@@ -266,6 +316,8 @@ function armJobSeen(job) {
   renderStatus(job.demo);
 }
 
+document.getElementById("settings").addEventListener("submit", (ev) =>
+  applySettings(ev).catch((e) => showMessage(`Could not change the settings: ${e.message}`)));
 document.getElementById("rescan").addEventListener("click", () =>
   loadSessions().catch((e) => showMessage(`Could not list sessions: ${e.message}`)));
 loadSessions().catch((e) => showMessage(`Could not list sessions: ${e.message}`)).then(poll);
