@@ -13,8 +13,16 @@ little to lift a sugar box with a fingertip grasp), and a fixed larger depth cru
 out of a pinch. Each grasping contact i (one per hand body near the object) is given a desired
 normal force ``f_i = max(grip_safety · m·g·(1 + d/ρ) / (μ · n_contacts), min_grip_force_n)``
 (d: centre of mass to the contacts' centroid, ρ: the contacts' spread), so that the friction of
-all contacts carries ``grip_safety`` times the object's weight and its moment about the grasp,
-and the target is
+all contacts carries ``grip_safety`` times the object's weight and its moment about the grasp.
+That rule of thumb credits every contact with a lever ρ against the weight's moment, which
+contacts on a thin wall do not have: a bowl pinched at its rim (thumb inside, fingers outside,
+6 cm from the centre of mass) can hold its moment only through a couple of contact forces at a
+small offset (straight across a 4 mm wall, 6 cm from the centre of mass: 2.3 times the rule's
+force; tests/test_least_grip_squeeze.py). So the total is raised, where needed, to
+``grip_safety`` times the *least* total normal force with which these contacts (one per hand
+body, the simulation's friction and torsional friction) can hold the weight at all
+(:func:`sim.metrics.holding.min_grip_force_n`, :func:`least_grip_total_n`); contacts that cannot
+hold it however they press keep the rule's force. The target is
 
     q_squeeze = q + J⁺ (gaps + squeeze_depth_m) + K_q⁺ Jᵀ f
 
@@ -34,6 +42,7 @@ import mujoco
 import numpy as np
 
 from sim.hand.model import Hand
+from sim.metrics.holding import min_grip_force_n
 from sim.validate.config import GRAVITY_MPS2, CommonParams
 from sim.validate.contact_forces import balanced_normal_forces
 from sim.validate.effort import closest_per_body
@@ -41,7 +50,7 @@ from sim.world.contacts import Contacts
 from sim.world.scene import Scene
 
 __all__ = ["GraspTargets", "finger_joint_mask", "grip_force_n", "joint_stiffness",
-           "squeeze_total_n", "targets_from_contacts"]
+           "least_grip_total_n", "squeeze_total_n", "targets_from_contacts"]
 
 # relative damping of the pseudo-inverses: the contact Jacobian's (m², as J Jᵀ) and the joint
 # stiffness's (times its largest eigenvalue; only makes singular directions harmless)
@@ -95,6 +104,28 @@ def squeeze_total_n(points: np.ndarray, com_m: np.ndarray, mass_kg: float,
             / common.contact.friction[0])
 
 
+def least_grip_total_n(points: np.ndarray, normals_in: np.ndarray, com_m: np.ndarray,
+                       mass_kg: float, common: CommonParams,
+                       down: np.ndarray | None = None) -> float:
+    """``grip_safety`` times the least total normal force (newtons) with which contacts at
+    ``points`` (n, 3) pressing along ``normals_in`` (n, 3, into the object) hold the object's
+    weight pulling along ``down`` (unit, same frame; None: −z) with the configured sliding and
+    torsional friction; ``inf`` when they cannot hold it however hard they press.
+
+    Why, beside :func:`squeeze_total_n`: that rule sizes the squeeze from the contacts' spread
+    ρ, but only a spread across the weight's moment arm helps. Opposed contacts on a thin wall
+    (a bowl's rim) are spread along the wall, and the moment of a centre of mass 6 cm away must
+    come from a couple of contact forces a few millimetres apart; the linear programme of
+    :func:`sim.metrics.holding.min_grip_force_n` knows that, the rule does not.
+    """
+    down = np.array([0.0, 0.0, -1.0]) if down is None else np.asarray(down, dtype=float)
+    weight = mass_kg * GRAVITY_MPS2 * down
+    load = np.concatenate([weight, np.zeros(3)])
+    friction = common.contact.friction
+    least = min_grip_force_n(points, normals_in, com_m, load, friction[0], friction[1])
+    return common.grip_safety * least
+
+
 def joint_stiffness(scene: Scene, finger_mask: np.ndarray) -> np.ndarray:
     """Joint-space stiffness (nq × nq over the hand's joints; N·m/rad for hinges) of the
     hand's finger servos at the current state: ``K_q = Mᵀ diag(k) M``.
@@ -126,15 +157,18 @@ def _stiffness_pinv(stiffness: np.ndarray) -> np.ndarray:
 
 
 def targets_from_contacts(scene: Scene, hand: Hand, q: np.ndarray, near: Contacts,
-                          common: CommonParams, finger_mask: np.ndarray) -> GraspTargets:
+                          common: CommonParams, finger_mask: np.ndarray,
+                          down: np.ndarray | None = None) -> GraspTargets:
     """Pregrasp and squeeze joint vectors of the grasp placed in ``scene`` at joints ``q``,
     from its hand–object contacts and near misses ``near`` (distances in metres).
 
     Per hand body the closest point is moved along its normal (by distance − backoff for the
     pregrasp, distance + squeeze depth for the squeeze). The squeeze then adds the servo
     deflection ``K_q⁺ Jᵀ f`` that presses each of those points into the object with the grip
-    force f (module docstring). No body near the object gives ``n_bodies_near = 0`` and ``q``
-    for both targets.
+    force f (module docstring): the larger of :func:`grip_force_n`'s rule and the least grip
+    that holds the weight pulling along ``down`` (world, unit; None: −z) at these contacts
+    (:func:`least_grip_total_n`), split over them. No body near the object gives
+    ``n_bodies_near = 0`` and ``q`` for both targets.
     """
     m, d = scene.model, scene.data
     rows, gaps, closest, normals = [], [], [], []
@@ -155,6 +189,10 @@ def targets_from_contacts(scene: Scene, hand: Hand, q: np.ndarray, near: Contact
     pinv = jac.T @ solve
     pre = hand.clip(q + pinv @ (gaps - common.pregrasp_backoff_m))
     force_n = grip_force_n(scene, np.array(closest), common)
+    least_n = least_grip_total_n(np.array(closest), np.array(normals), d.xipos[scene.obj_body],
+                                 scene.obj_mass_kg, common, down)
+    if np.isfinite(least_n):
+        force_n = max(force_n, least_n / len(rows))
     if common.squeeze_forces == "balanced":
         forces = balanced_normal_forces(np.array(closest), np.array(normals),
                                         d.xipos[scene.obj_body], force_n * len(rows))

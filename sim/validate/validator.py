@@ -127,15 +127,17 @@ class Validator:
         return Contacts(near.pos[keep], near.normal[keep], near.dist[keep], near.body_a[keep],
                         near.force_n[keep])
 
-    def derive_targets(self, scene: Scene, q: np.ndarray) -> GraspTargets:
+    def derive_targets(self, scene: Scene, q: np.ndarray,
+                       down: np.ndarray | None = None) -> GraspTargets:
         """Pregrasp and squeeze joint vectors from the contacts near the placed grasp.
 
         Object geoms get a temporary margin of ``contact_search_m`` so MuJoCo reports near
         misses with their distance; :func:`sim.validate.targets.targets_from_contacts` moves
-        each hand body's closest point along its normal and adds the squeeze's grip force.
+        each hand body's closest point along its normal and adds the squeeze's grip force, sized
+        for the weight pulling along ``down`` (world unit vector; None: −z, lift-drop's default).
         """
         return targets_from_contacts(scene, self.hand, q, self._near_contacts(scene),
-                                     self.config.common, self._finger_mask)
+                                     self.config.common, self._finger_mask, down)
 
     def stages(self, grasp: Grasp, convention: str | None = None) -> GraspStages:
         """Pregrasp, grasp and squeeze of ``grasp``: its own when it carries them, else made by
@@ -299,7 +301,7 @@ class Validator:
         if penetration > self.config.common.max_penetration_m:
             result.failure = Failure.PENETRATION
             return result, None
-        targets = self.derive_targets(here, q)
+        targets = self.derive_targets(here, q, down)
         result.pregrasp, result.squeeze = targets.pregrasp, targets.squeeze
         result.squeeze_convention = "dexaug"
         if targets.n_bodies_near == 0:
