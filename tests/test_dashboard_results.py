@@ -36,6 +36,8 @@ def _results_root(root: Path) -> Path:
     _summary(root / ".thumbnails" / "hidden", "hidden", 1, 1)
     (root / "broken").mkdir()
     (root / "broken" / "summary.json").write_text("{not json")
+    (root / "dangling").mkdir()   # a summary that is a broken link: its error names no path
+    (root / "dangling" / "summary.json").symlink_to(root / "gone" / "summary.json")
     return root
 
 
@@ -60,6 +62,8 @@ def test_settings_round_trip_and_bad_values_are_refused(tmp_path: Path) -> None:
         assert dash.config.options.validate == "dgb" and dash.catalog.opts.n == 37
         for body, field in (({"n": 0}, "'n'"), ({"n": "7"}, "'n'"), ({"n": True}, "'n'"),
                             ({"n": 5001}, "'n'"), ({"table": True}, "'table'"),
+                            ({"table": []}, "'table'"), ({"table": {}}, "'table'"),
+                            ({"validate": ["dgb"]}, "'validate'"),
                             ({"validate": "shake"}, "'validate'"), ({"gallery": 3}, "gallery"),
                             ([1], "JSON object")):
             status, doc = _post(url + "api/settings", json.dumps(body).encode())
@@ -98,13 +102,14 @@ def test_every_result_folder_is_listed_without_paths(tmp_path: Path) -> None:
         status, doc = _get(url + "api/results")
         assert status == 200
         by = {r["folder"]: r for r in doc["results"]}
-        assert set(by) == {"demo/keyframes@062", "a/b/c/deep", "broken"}
+        assert set(by) == {"demo/keyframes@062", "a/b/c/deep", "broken", "dangling"}
         made = by["demo/keyframes@062"]
         assert (made["generated"], made["passed"], made["pass_rate"]) == (10, 7, 0.7)
         assert made["viewer"] == "/results/demo/keyframes%40062/viewer.html"
         assert made["report"] == "/results/demo/keyframes%40062/report.html"
         assert by["a/b/c/deep"]["viewer"] is None and by["a/b/c/deep"]["pass_rate"] == 0.0
         assert "unreadable" in by["broken"]["error"] and "\n" not in by["broken"]["error"]
+        assert "FileNotFoundError" in by["dangling"]["error"]
         assert str(tmp_path) not in json.dumps(doc)
         assert _get(url + made["viewer"].lstrip("/"))[0] == 200   # the link is served
 
@@ -128,7 +133,7 @@ def test_the_page_sends_its_settings_and_lists_the_results(chromium, tmp_path: P
         page.wait_for_selector("#message.error")
         assert "'n'" in page.text_content("#message") and dash.config.options.n == 120
         rows = page.locator("#results tbody tr")
-        assert rows.count() == 3
+        assert rows.count() == 4   # incl. the broken and the dangling summary
         row = page.locator("#results tr[data-folder='demo/keyframes@062']")
         assert "70.0 %" in row.text_content() and row.locator("a", has_text="3D view").count() == 1
         page.screenshot(path=str(artifact_path("dashboard_settings_results.png")), full_page=True)

@@ -48,7 +48,10 @@ def _entry(root: Path, path: Path) -> dict[str, Any]:
         entry.update(demo=str(doc["demo_id"]), object=str(doc["object"]), hand=str(doc["hand"]),
                      generated=generated, passed=passed,
                      pass_rate=passed / generated if generated else None)
-    except (OSError, ValueError, KeyError, TypeError) as exc:
+    except OSError as exc:   # its text would name the absolute path: only the cause is shown
+        entry["error"] = (f"{rel.as_posix()}/summary.json is unreadable "
+                          f"({type(exc).__name__}: {exc.strerror or 'cannot be read'})")
+    except (ValueError, KeyError, TypeError) as exc:
         entry["error"] = (f"{rel.as_posix()}/summary.json is unreadable "
                           f"({type(exc).__name__}: {exc})")
     return entry

@@ -54,12 +54,12 @@ def apply_settings(body: Any, opts: AugmentOptions) -> AugmentOptions:
             raise SettingsError(f"field 'n' must be an integer from 1 to {MAX_N}, got {n!r}")
         changes["n"] = n
     if "table" in body:
-        if body["table"] not in TABLE_CHOICES:
+        if not isinstance(body["table"], str) or body["table"] not in TABLE_CHOICES:
             raise SettingsError(f"field 'table' must be one of {', '.join(TABLE_CHOICES)}, "
                                 f"got {body['table']!r}")
         changes["table"] = TABLE_CHOICES[body["table"]]
     if "validate" in body:
-        if body["validate"] not in PROTOCOL_CHOICES:
+        if not isinstance(body["validate"], str) or body["validate"] not in PROTOCOL_CHOICES:
             raise SettingsError(f"field 'validate' must be one of {', '.join(PROTOCOL_CHOICES)}"
                                 f", got {body['validate']!r}")
         changes["validate"] = None if body["validate"] == "none" else body["validate"]
