@@ -14,12 +14,16 @@ unlink).
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from concurrent.futures import wait
 from multiprocessing import shared_memory
+from typing import Any
 
 import numpy as np
 
-__all__ = ["ProgressBoard", "worker_slot"]
+from sim.pools import persistent_pool
+
+__all__ = ["ProgressBoard", "run_workers", "worker_slot"]
 
 
 class ProgressBoard:
@@ -61,3 +65,25 @@ def worker_slot(name: str, worker: int) -> tuple[Callable[[int], None], Callable
         shm.close()
 
     return set_count, close
+
+
+def run_workers(fn: Callable[..., Any], worker_args: Sequence[tuple[Any, ...]], n: int,
+                progress: Callable[[int], None] | None, preload: Sequence[str]) -> list[Any]:
+    """``fn(*args, board)`` for each ``args`` of ``worker_args`` on the persistent pool (one
+    process per entry), their results in that order. ``board`` is the name of a
+    :class:`ProgressBoard` whose slot the worker sets with :func:`worker_slot` (None without
+    ``progress``); ``progress`` gets the summed count, at most ``n``, about every 0.2 s."""
+    pool = persistent_pool(len(worker_args), preload=preload)
+    board = ProgressBoard(len(worker_args)) if progress is not None else None
+    try:
+        futs = [pool.submit(fn, *args, None if board is None else board.name)
+                for args in worker_args]
+        while board is not None and progress is not None:
+            _, pending = wait(futs, timeout=0.2)
+            progress(min(n, board.total()))
+            if not pending:
+                break
+        return [f.result() for f in futs]
+    finally:
+        if board is not None:
+            board.close()

@@ -41,7 +41,6 @@ import logging
 import math
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import wait
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -49,11 +48,10 @@ import numpy as np
 from augment.fsg.batch import Sampler, SamplerSetup
 from augment.fsg.checks import Dedup, EffortScore, PenetrationCheck
 from augment.fsg.params import FsgError, FsgParams, load_fsg_params
-from augment.fsg.progress import ProgressBoard, worker_slot
+from augment.fsg.progress import run_workers, worker_slot
 from augment.fsg.result import FsgGrasp, FsgResult
 from augment.fsg.table import TablePlane
 from sim.metrics.holding import HoldLoads
-from sim.pools import persistent_pool
 
 if TYPE_CHECKING:
     from augment.autows.cloud import WorkspaceCloud
@@ -137,20 +135,8 @@ def _run_pool(setup: SamplerSetup, seed: int, n: int, deadline: float, workers: 
     """The workers' runs on the persistent pool; with ``progress``, their summed count of
     accepted grasps (at most ``n``) reported about every 0.2 s while they run."""
     share = math.ceil(n / workers)
-    pool = persistent_pool(workers, preload=(__name__,))
-    board = ProgressBoard(workers) if progress is not None else None
-    try:
-        futs = [pool.submit(_worker_run, setup, seed + k, k, share, deadline,
-                            None if board is None else board.name) for k in range(workers)]
-        while board is not None and progress is not None:
-            _, pending = wait(futs, timeout=0.2)
-            progress(min(n, board.total()))
-            if not pending:
-                break
-        return [f.result() for f in futs]
-    finally:
-        if board is not None:
-            board.close()
+    return run_workers(_worker_run, [(setup, seed + k, k, share, deadline)
+                                     for k in range(workers)], n, progress, (__name__,))
 
 
 def merge(outs: Sequence[WorkerOutput], nq: int, params: FsgParams

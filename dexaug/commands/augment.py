@@ -43,8 +43,11 @@ from dexaug.commands.workers import stop_workers
 from sim.errors import DexaugError, UsageError
 
 if TYPE_CHECKING:
+    from augment.fsg.result import FsgResult
     from dexaug.pipeline.summary import DemoSummary
     from sim.demo import Demo
+    from sim.hand.model import Hand
+    from sim.world.objects import ObjectAsset
 
 log = logging.getLogger(__name__)
 
@@ -62,6 +65,10 @@ def _generate_args(p: argparse.ArgumentParser) -> None:
                    "an existing one with grasps is refused unless --append; default %(default)s")
     p.add_argument("--append", action="store_true", help="add to an existing --out (rows that "
                    "exactly repeat its grasps are refused); default: off")
+    p.add_argument("--mode", choices=("fingertip", "power"), default="fingertip",
+                   help="fingertip: FSG (paper §4); power: palm and whole fingers around the "
+                   "object, for objects fingertips cannot lift (augment.power; no --demo, "
+                   "--fingers or --table); default %(default)s")
     generation_args(p)
 
 
@@ -73,18 +80,18 @@ def generate_cmd(args: argparse.Namespace, console: Console) -> int:
     the fingers that touched in the demo are used, as in the paper's augmentation). Every grasp
     is validated in MuJoCo (--validate); passing grasps go to the main table, failing ones to
     the side table "rejected" with their reason. A shortfall (fewer grasps than --n within
-    --budget) is reported, never a hang.
+    --budget) is reported, never a hang. --mode power makes whole-hand grasps instead
+    (augment.power: palm on the object, every finger closed onto it in simulation).
     """
     from augment import dataset
-    from augment.autows.build import build_workspace
-    from augment.autows.seed import DemoSeed
-    from augment.object_cloud import object_cloud
     from dexaug.pipeline.demos import resolve_demo
-    from dexaug.pipeline.run import demo_fingers, demo_table, generate_grasps
     from sim.hand.model import Hand
     from sim.validate.batch import default_workers, validate_many
     from sim.world.objects import load_object
 
+    if args.mode == "power" and (args.demo or args.fingers or args.table is not None):
+        raise UsageError("--mode power places the whole hand: it takes no --demo, --fingers or "
+                         "--table")
     if not args.append and (held := dataset.existing_rows(args.out)):
         raise DexaugError(f"{args.out} already holds {held} grasps: pass --append to add to it, "
                           f"or choose another --out")
@@ -96,18 +103,12 @@ def generate_cmd(args: argparse.Namespace, console: Console) -> int:
     if demo is not None and demo.object != obj.name:
         console.print(f"note: demo {demo.id} grasps {demo.object}, generating for {obj.name}",
                       style="yellow")
-    ws = build_workspace(hand, demo=DemoSeed.from_demo(demo) if demo else None)
     with progress_bars(console) as bar:
-        task = bar.add_task(escape(f"FSG {obj.name}"), total=args.n)
-        res = generate_grasps(hand, object_cloud(obj), ws, n=args.n, fingers=args.fingers,
-                       finger_names=demo_fingers(demo) if demo else None,
-                       table=demo_table(demo, args.table), use_affordance=not args.no_aff,
-                       finger_iteration=(args.finger_iteration if args.finger_iteration is not None
-                                         else demo is None),
-                       link_penetration=not args.no_linkpen, seed=args.seed,
-                       time_budget_s=args.budget, workers=workers,
-                       hold_protocol=args.validate if args.validate != "none" else "lift-drop",
-                       progress=lambda k: bar.update(task, completed=k))
+        task = bar.add_task(escape(f"{'power' if args.mode == 'power' else 'FSG'} {obj.name}"),
+                            total=args.n)
+        res = (_power(args, hand, obj.name, workers, lambda k: bar.update(task, completed=k))
+               if args.mode == "power" else _fsg(args, hand, obj, demo, workers,
+                                                 lambda k: bar.update(task, completed=k)))
         bar.update(task, completed=len(res.grasps))
         results = None
         if args.validate != "none" and res.grasps:
@@ -123,7 +124,7 @@ def generate_cmd(args: argparse.Namespace, console: Console) -> int:
                              split_rejected=results is not None)
     dataset.append(args.out, {obj.name: table})
     per = res.elapsed_s / len(res.grasps) if res.grasps else float("nan")
-    console.print(f"FSG: {len(res.grasps)}/{args.n} grasps in {res.elapsed_s:.2f} s "
+    console.print(f"{'power' if args.mode == 'power' else 'FSG'}: {len(res.grasps)}/{args.n} grasps in {res.elapsed_s:.2f} s "
                   f"({per:.3f} s/grasp, stopped: {res.stopped}; finger sets "
                   f"{[len(s) for s in res.finger_sets]})")
     if res.shortfall:
@@ -136,6 +137,41 @@ def generate_cmd(args: argparse.Namespace, console: Console) -> int:
     return 0
 
 
+def _fsg(args: argparse.Namespace, hand: Hand, obj: ObjectAsset, demo: Demo | None,
+         workers: int, progress: Callable[[int], None]) -> FsgResult:
+    """FSG on the hand's manual workspace, or one centred on ``demo``."""
+    from augment.autows.build import build_workspace
+    from augment.autows.seed import DemoSeed
+    from augment.object_cloud import object_cloud
+    from dexaug.pipeline.run import demo_fingers, demo_table, generate_grasps
+
+    ws = build_workspace(hand, demo=DemoSeed.from_demo(demo) if demo else None)
+    return generate_grasps(hand, object_cloud(obj), ws, n=args.n, fingers=args.fingers,
+                           finger_names=demo_fingers(demo) if demo else None,
+                           table=demo_table(demo, args.table), use_affordance=not args.no_aff,
+                           finger_iteration=(args.finger_iteration
+                                             if args.finger_iteration is not None
+                                             else demo is None),
+                           link_penetration=not args.no_linkpen, seed=args.seed,
+                           time_budget_s=args.budget, workers=workers,
+                           hold_protocol=_hold_protocol(args), progress=progress)
+
+
+def _power(args: argparse.Namespace, hand: Hand, obj: str, workers: int,
+           progress: Callable[[int], None]) -> FsgResult:
+    """Power grasps (:mod:`augment.power`), kept when the actuators can hold the loads of
+    --validate's protocol (lift-drop's when validation is off)."""
+    from augment.power import generate_power
+
+    return generate_power(hand, obj, n=args.n, seed=args.seed, workers=workers,
+                          time_budget_s=args.budget, protocol=_hold_protocol(args),
+                          use_affordance=not args.no_aff, progress=progress)
+
+
+def _hold_protocol(args: argparse.Namespace) -> str:
+    return args.validate if args.validate != "none" else "lift-drop"
+
+
 def _generate_provenance(args: argparse.Namespace, hand: str, backend: str,
                          demo: Demo | None) -> dict[str, object]:
     """What made a ``generate`` table: every option as given (JSON), the hand, protocol,
@@ -146,6 +182,7 @@ def _generate_provenance(args: argparse.Namespace, hand: str, backend: str,
     options = {k: str(v) if isinstance(v, Path) else v for k, v in vars(args).items()
                if k not in ("handler",) and not callable(v)}
     return {"hand": hand, "seed": args.seed, "protocol": args.validate, "backend": backend,
+            "mode": args.mode,
             "options": json.dumps(options, sort_keys=True, default=str),
             "demo_source": str(demo.source) if demo is not None else "",
             "demo": json.dumps(demo_to_json(demo)) if demo is not None else ""}

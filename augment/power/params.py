@@ -1,0 +1,79 @@
+"""Power-grasp parameters: the ``[power]`` table of ``configs/augment.toml``, validated on load.
+
+Units: metres, seconds. Kept apart from the generator so the CLI can check them first.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from augment.autows.params import AUGMENT_TOML
+from sim.config import load_toml
+from sim.errors import ConfigError
+
+__all__ = ["PowerParams", "load_power_params"]
+
+
+@dataclass(frozen=True)
+class PowerParams:
+    """How power grasps are placed, closed and kept (:mod:`augment.power`).
+
+    Attributes:
+        standoff_m: gap between the open hand and the object surface before closing.
+        max_palm_gap_m: farthest the palm may then be from the object (a thumb sticking out
+            of the palm plane touches first on a flat face; a palm that overhangs an edge
+            misses).
+        approach_pose / close_pose: the hand's named postures (``[grasp]`` of its hand.toml)
+            to close from and toward.
+        close_time_s / hold_time_s: how long the controls ramp, then hold, while closing.
+        contact_m: a hand body within this distance of the object touches it.
+        max_effort: keep grasps whose least worst actuator effort for the validation's loads
+            is at most this fraction of the force limits (1: the actuators can just hold).
+        tries_per_grasp: closings (one simulation each) per requested grasp before giving up;
+            placements, which cost a few collision passes, up to ten times as many.
+    """
+
+    standoff_m: float = 0.003
+    max_palm_gap_m: float = 0.015
+    approach_pose: str = "open_pose"
+    close_pose: str = "close_pose"
+    close_time_s: float = 0.5
+    hold_time_s: float = 0.3
+    contact_m: float = 0.002
+    max_effort: float = 1.0
+    tries_per_grasp: int = 20
+
+    def __post_init__(self) -> None:
+        for name in ("standoff_m", "hold_time_s"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"{name} must be a number >= 0, got {v}")
+        for name in ("close_time_s", "contact_m", "max_effort", "max_palm_gap_m"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be a positive number, got {v}")
+        if self.tries_per_grasp < 1:
+            raise ValueError(f"tries_per_grasp must be >= 1, got {self.tries_per_grasp}")
+
+
+def load_power_params(path: Path | str | None = None) -> PowerParams:
+    """``[power]`` of ``configs/augment.toml`` (or ``path``); missing keys take the defaults of
+    :class:`PowerParams`; errors name the file and key."""
+    sec = load_toml(path or AUGMENT_TOML).section("power", {})
+    fields = [f.name for f in dataclasses.fields(PowerParams)]
+    sec.reject_unknown(set(fields))
+    d = PowerParams()
+    kw: dict[str, Any] = {}
+    for name in fields:
+        default = getattr(d, name)
+        kw[name] = (sec.str(name, default) if isinstance(default, str)
+                    else sec.int(name, default) if isinstance(default, int)
+                    else sec.float(name, default))
+    try:
+        return PowerParams(**kw)
+    except ValueError as exc:
+        raise ConfigError(f"{sec.where()}: {exc}") from None
