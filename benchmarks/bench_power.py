@@ -21,6 +21,7 @@ from augment.autows.build import build_workspace
 from augment.object_cloud import object_cloud
 from augment.power import generate_power
 from dexaug.pipeline.run import generate_grasps
+from sim.hand.config import default_hand_name
 from sim.hand.model import Hand
 from sim.validate.batch import validate_many
 from sim.world.objects import load_object
@@ -61,7 +62,7 @@ def main() -> None:
     ap.add_argument("--objects", nargs="*", default=list(OBJECTS))
     ap.add_argument("--modes", nargs="*", default=["fingertip", "power"],
                     choices=["fingertip", "power"])
-    ap.add_argument("--hand", default="shadow_right")
+    ap.add_argument("--hand", default=default_hand_name())
     ap.add_argument("--n", type=int, default=40)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--seed", type=int, default=0)

@@ -53,7 +53,7 @@ def bleach_grasps(shadow):
 def test_power_grasps_touch_where_they_say_and_hold_a_heavy_bottle(shadow, bleach_grasps) -> None:
     res = bleach_grasps
     assert len(res.grasps) == 6 and res.stopped == "done"
-    assert res.stats["candidates"] >= res.stats["accepted"] == 6
+    assert res.stats["candidates"] >= res.stats["accepted"] >= 6   # found 2 × n, kept 6
     val = cached_validator(shadow.name, BLEACH)
     scene = val.scene("lift-drop")
     for g in res.grasps:

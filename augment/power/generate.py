@@ -206,7 +206,8 @@ def generate_power(hand: Hand, obj_name: str, *, n: int = 10, seed: int = 0,
                    use_affordance: bool = True, params: PowerParams | None = None,
                    progress: Callable[[int], None] | None = None) -> FsgResult:
     """Up to ``n`` power grasps of object ``obj_name`` with ``hand`` (module docstring),
-    ranked by the actuator effort that ``protocol``'s loads need, least first.
+    ranked by the actuator effort that ``protocol``'s loads need, least first: the search finds
+    ``oversample`` × n and keeps the n of least effort.
 
     Stats: ``candidates`` placements tried, dropped at ``placement`` (the palm overhangs an
     edge), ``closed`` hands closed on the object, dropped at ``penetration`` (a link stays
@@ -218,10 +219,13 @@ def generate_power(hand: Hand, obj_name: str, *, n: int = 10, seed: int = 0,
     job = _Job(hand.name, obj_name, protocol, p, use_affordance)
     t0 = time.perf_counter()
     deadline = time.time() + time_budget_s
+    wanted = math.ceil(n * p.oversample)
+    shown = (None if progress is None
+             else lambda k: progress(min(n, k * n // wanted)))
     if workers <= 1:
-        outs = [_search(job, seed, 0, n, deadline, progress or (lambda k: None))]
+        outs = [_search(job, seed, 0, wanted, deadline, shown or (lambda k: None))]
     else:
-        outs = _run_pool(job, seed, n, deadline, workers, progress)
+        outs = _run_pool(job, seed, wanted, deadline, workers, shown)
     grasps: list[FsgGrasp] = []
     stats: Counter[str] = Counter()
     dedup = Dedup(hand.nq, load_fsg_params(hand.config))
