@@ -89,7 +89,7 @@ def test_grasps_the_actuators_cannot_hold_are_dropped_with_a_clear_warning(shado
 
 @needs_menagerie
 def test_a_hand_without_a_closing_posture_is_refused(shadow) -> None:
-    with pytest.raises(PowerError, match="shadow_right.*open_pose and open_pose"):
+    with pytest.raises(PowerError, match=r"shadow_right.*open_pose and open_pose"):
         generate_power(shadow, BLEACH, n=1, params=PowerParams(close_pose="open_pose"))
 
 

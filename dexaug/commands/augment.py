@@ -124,7 +124,8 @@ def generate_cmd(args: argparse.Namespace, console: Console) -> int:
                              split_rejected=results is not None)
     dataset.append(args.out, {obj.name: table})
     per = res.elapsed_s / len(res.grasps) if res.grasps else float("nan")
-    console.print(f"{'power' if args.mode == 'power' else 'FSG'}: {len(res.grasps)}/{args.n} grasps in {res.elapsed_s:.2f} s "
+    label = "power" if args.mode == "power" else "FSG"
+    console.print(f"{label}: {len(res.grasps)}/{args.n} grasps in {res.elapsed_s:.2f} s "
                   f"({per:.3f} s/grasp, stopped: {res.stopped}; finger sets "
                   f"{[len(s) for s in res.finger_sets]})")
     if res.shortfall:
