@@ -319,8 +319,9 @@ def test_the_job_list_is_bounded() -> None:
         q.submit("run", "running", 0)
         _wait(lambda: len(gate.calls) == 1, "the first job's start")
         for k in range(3):
-            q.submit(f"q{k}", f"queued {k}", k)
-        with pytest.raises(JobQueueFull, match="3 augmentations are already waiting"):
+            q.submit(f"q{k}", f"queued {k}", k, kind="arm" if k == 1 else "augment")
+        # the message names what waits: arm runs are not called augmentations
+        with pytest.raises(JobQueueFull, match="1 arm run and 2 augmentations are already waiting"):
             q.submit("late", "one too many", 9)
         gate.open.set()
         _wait(lambda: all(j["state"] == "done" for j in q.snapshot()), "the jobs' end")

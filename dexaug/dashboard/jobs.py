@@ -28,6 +28,7 @@ import queue
 import threading
 import time
 import traceback
+from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -120,9 +121,9 @@ class JobQueue:
             for job in self._jobs.values():
                 if job.key == key and job.active:
                     return job
-            waiting = sum(j.state == "queued" for j in self._jobs.values())
-            if waiting >= self.max_queued:
-                raise JobQueueFull(f"{waiting} augmentations are already waiting (the most the "
+            waiting = [j.kind for j in self._jobs.values() if j.state == "queued"]
+            if len(waiting) >= self.max_queued:
+                raise JobQueueFull(f"{_count_kinds(waiting)} already waiting (the most the "
                                    "dashboard queues); try again when one has started")
             job = Job(next(self._ids), key, label, payload, kind, demo, target)
             self._jobs[job.id] = job
@@ -204,3 +205,17 @@ def run_augmentation(payload: tuple[Any, str, Any], progress: Callable[[str, int
     demo, out_root, opts = payload
     summary = augment_demo(demo, out_root, opts, progress=progress)
     return {**summary.to_json(), "skipped": summary.skipped}
+
+
+#: what a job of each kind is called in messages (singular, plural)
+_KIND_NAMES = {"augment": ("augmentation", "augmentations"), "arm": ("arm run", "arm runs")}
+
+
+def _count_kinds(kinds: list[str]) -> str:
+    """The waiting jobs by kind for the queue-full message, the verb agreeing:
+    ``["augment", "arm", "augment"]`` → "1 arm run and 2 augmentations are"."""
+    counts = Counter(kinds)
+    parts = [f"{n} {_KIND_NAMES.get(k, (k + ' job', k + ' jobs'))[n != 1]}"
+             for k, n in sorted(counts.items())]
+    verb = "is" if len(kinds) == 1 else "are"
+    return f"{' and '.join(parts)} {verb}"
