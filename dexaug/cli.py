@@ -34,8 +34,8 @@ OWN_PACKAGES = ("dexaug", "sim", "augment", "teleop")
 #: the command modules, in the order ``dexaug --help`` lists their subcommands (the data flow:
 #: assets and validation, the demo, capture, augmentation, the dashboard)
 COMMAND_MODULES = tuple(f"dexaug.commands.{m}" for m in (
-    "assets", "validate", "demo", "workspace", "teleop", "repair", "augment", "batch", "arm",
-    "diagnose", "export", "stream", "ui", "view"))
+    "assets", "validate", "demo", "workspace", "teleop", "repair", "generate", "augment", "batch",
+    "arm", "diagnose", "export", "stream", "ui", "view"))
 
 
 def version_text() -> str:

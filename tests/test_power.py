@@ -117,3 +117,19 @@ def test_generate_power_writes_a_dataset_and_refuses_a_demo(tmp_path: Path, caps
                  "--out", str(tmp_path / "q.h5")]) == 2
     err = capsys.readouterr().err
     assert "--mode power" in err and "Traceback" not in err and not (tmp_path / "q.h5").exists()
+
+
+@needs_menagerie
+@needs_ycb
+def test_auto_adds_power_grasps_only_where_fingertips_fail(tmp_path: Path) -> None:
+    """--mode auto: on the bleach bottle no fingertip grasp holds, so power grasps are added to
+    the same table; on a light cup fingertip grasps hold and nothing is added."""
+    for obj, modes in ((BLEACH, "fingertip power"), ("065_a_cups", "fingertip")):
+        out = tmp_path / f"{obj}.h5"
+        assert main(["generate", "--object", obj, "--mode", "auto", "--n", "4", "--workers", "1",
+                     "--out", str(out)]) == 0
+        t = dataset.load(out)[obj]
+        assert t.attrs["modes_run"] == modes, obj
+        assert len(t) + len(t.rejected) == 4 * len(modes.split())
+    assert main(["generate", "--object", BLEACH, "--mode", "auto", "--validate", "none",
+                 "--out", str(tmp_path / "x.h5")]) == 2

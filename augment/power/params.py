@@ -35,6 +35,9 @@ class PowerParams:
             is at most this fraction of the force limits (1: the actuators can just hold).
         oversample: find this many times the grasps asked for and keep those of least
             actuator effort (README "Power grasps": the effort ranks them, AUC 0.66–0.84).
+        auto_below: ``dexaug generate --mode auto`` adds power grasps when fewer than this
+            share of its fingertip grasps pass validation (the issue's "power grasps where the
+            fingertip mode is below 30 %").
         tries_per_grasp: closings (one simulation each) per requested grasp before giving up;
             placements, which cost a few collision passes, up to ten times as many.
     """
@@ -49,6 +52,7 @@ class PowerParams:
     max_effort: float = 1.0
     tries_per_grasp: int = 20
     oversample: float = 2.0
+    auto_below: float = 0.3
 
     def __post_init__(self) -> None:
         for name in ("standoff_m", "hold_time_s"):
@@ -61,6 +65,8 @@ class PowerParams:
                 raise ValueError(f"{name} must be a positive number, got {v}")
         if not (math.isfinite(self.oversample) and self.oversample >= 1.0):
             raise ValueError(f"oversample must be a number >= 1, got {self.oversample}")
+        if not 0.0 <= self.auto_below <= 1.0:
+            raise ValueError(f"auto_below must be a share from 0 to 1, got {self.auto_below}")
         if self.tries_per_grasp < 1:
             raise ValueError(f"tries_per_grasp must be >= 1, got {self.tries_per_grasp}")
 

@@ -1,0 +1,220 @@
+"""``dexaug generate``: grasps of one object (FSG fingertip grasps, power grasps, or both),
+validated in MuJoCo, into an HDF5 dataset.
+
+Parses its arguments, calls ``augment`` and ``sim.validate``, and reports with rich progress
+bars; libraries never print.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from rich.console import Console
+from rich.markup import escape
+
+from dexaug.commands.argtypes import int_at_least
+from dexaug.commands.options import (
+    backend_of,
+    generation_args,
+    hand_arg,
+)
+from dexaug.commands.registry import command
+from dexaug.commands.running import (
+    progress_bars,
+)
+from sim.errors import DexaugError, UsageError
+
+if TYPE_CHECKING:
+    from rich.progress import Progress
+
+    from augment.fsg.result import FsgResult
+    from sim.demo import Demo
+    from sim.hand.model import Hand
+    from sim.validate.result import ValidationResult
+    from sim.world.objects import ObjectAsset
+
+log = logging.getLogger(__name__)
+
+
+def _generate_args(p: argparse.ArgumentParser) -> None:
+    hand_arg(p)
+    p.add_argument("--object", required=True, help="object name (YCB id/name or primitive)")
+    p.add_argument("--demo", help="centre the workspace on a demonstration: a demo .json, a "
+                   "session .mcap, or a reference grasp name")
+    p.add_argument("--fingers", type=int_at_least(2),
+                   help="use at most this many fingers (priority order; FSG needs 2)")
+    p.add_argument("--no-aff", action="store_true", help="sample the whole object cloud, not "
+                   "its graspable part (the paper's plain FSG)")
+    p.add_argument("--out", type=Path, default=Path("grasps.h5"), help="HDF5 dataset to write; "
+                   "an existing one with grasps is refused unless --append; default %(default)s")
+    p.add_argument("--append", action="store_true", help="add to an existing --out (rows that "
+                   "exactly repeat its grasps are refused); default: off")
+    p.add_argument("--mode", choices=("fingertip", "power", "auto"), default="fingertip",
+                   help="fingertip: FSG (paper §4); power: palm and whole fingers around the "
+                   "object, for objects fingertips cannot lift (augment.power; no --demo, "
+                   "--fingers or --table); auto: fingertip, then power grasps too when fewer "
+                   "than [power] auto_below of the fingertip grasps pass; default %(default)s")
+    generation_args(p)
+
+
+@command("generate", _generate_args)
+def generate_cmd(args: argparse.Namespace, console: Console) -> int:
+    """Generate grasps of one object with FSG (paper §4) and write them to an HDF5 dataset.
+
+    The workspace is the hand's manual one (paper Table 1), or centred on --demo (and then only
+    the fingers that touched in the demo are used, as in the paper's augmentation). Every grasp
+    is validated in MuJoCo (--validate); passing grasps go to the main table, failing ones to
+    the side table "rejected" with their reason. A shortfall (fewer grasps than --n within
+    --budget) is reported, never a hang. --mode power makes whole-hand grasps instead
+    (augment.power: palm on the object, every finger closed onto it in simulation); --mode
+    auto makes fingertip grasps and, when fewer than [power] auto_below of them pass, power
+    grasps too, both in the same table (attribute ``modes_run``).
+    """
+    from augment import dataset
+    from augment.power import load_power_params
+    from dexaug.pipeline.demos import resolve_demo
+    from sim.hand.model import Hand
+    from sim.validate.batch import default_workers
+    from sim.world.objects import load_object
+
+    if args.mode == "power" and (args.demo or args.fingers or args.table is not None):
+        raise UsageError("--mode power places the whole hand: it takes no --demo, --fingers or "
+                         "--table")
+    if not args.append and (held := dataset.existing_rows(args.out)):
+        raise DexaugError(f"{args.out} already holds {held} grasps: pass --append to add to it, "
+                          f"or choose another --out")
+    hand = Hand.load(args.hand)
+    obj = load_object(args.object)
+    workers = args.workers or default_workers()
+    backend = backend_of(args)
+    demo = resolve_demo(args.demo, hand.name) if args.demo else None
+    if demo is not None and demo.object != obj.name:
+        console.print(f"note: demo {demo.id} grasps {demo.object}, generating for {obj.name}",
+                      style="yellow")
+    if args.mode == "auto" and args.validate == "none":
+        raise UsageError("--mode auto decides from the fingertip grasps' validation: it needs "
+                         "--validate")
+    with progress_bars(console) as bar:
+        def run(mode: str) -> tuple[FsgResult, list[ValidationResult] | None]:
+            return _generate_and_validate(args, mode, hand, obj, demo, workers, backend, bar)
+
+        runs = [(mode := "power" if args.mode == "power" else "fingertip", *run(mode))]
+        if args.mode == "auto":
+            rate = _pass_rate(runs[0][2])
+            below = load_power_params().auto_below
+            if rate < below and demo is None and not args.fingers and args.table is None:
+                console.print(f"fingertip grasps: {100 * rate:.0f} % pass {args.validate} "
+                              f"(below {100 * below:.0f} %): adding power grasps")
+                runs.append(("power", *run("power")))
+    grasps = [g for _, res, _ in runs for g in res.grasps]
+    results = (None if any(r is None for _, _, r in runs)
+               else [x for _, _, r in runs for x in r])
+    table = dataset.from_fsg(grasps, hand.joint_names, hand.finger_names, results,
+                             demo_id=demo.id if demo else "",
+                             attrs=_generate_provenance(args, hand.name, backend, demo,
+                                                        [m for m, _, _ in runs]),
+                             split_rejected=results is not None)
+    dataset.append(args.out, {obj.name: table})
+    for mode, res, res_results in runs:
+        _report_run(console, args, mode, res, res_results)
+    console.print(f"wrote {args.out}")
+    return 0
+
+
+def _generate_and_validate(args: argparse.Namespace, mode: str, hand: Hand, obj: ObjectAsset,
+                           demo: Demo | None, workers: int, backend: str, bar: Progress
+                           ) -> tuple[FsgResult, list[ValidationResult] | None]:
+    """One mode's grasps (``"fingertip"``: FSG; ``"power"``) and, unless --validate none,
+    their validation, each with its progress bar."""
+    from sim.validate.batch import validate_many
+
+    task = bar.add_task(escape(f"{'power' if mode == 'power' else 'FSG'} {obj.name}"),
+                        total=args.n)
+    res = (_power(args, hand, obj.name, workers, lambda k: bar.update(task, completed=k))
+           if mode == "power" else _fsg(args, hand, obj, demo, workers,
+                                        lambda k: bar.update(task, completed=k)))
+    bar.update(task, completed=len(res.grasps))
+    if args.validate == "none" or not res.grasps:
+        return res, None if args.validate == "none" else []
+    vt = bar.add_task(f"validate {args.validate}", total=len(res.grasps))
+    return res, validate_many(hand.name, obj.name, [g.grasp for g in res.grasps],
+                              args.validate, workers=workers,
+                              squeeze_convention=args.squeeze_convention,
+                              progress=lambda k: bar.update(vt, completed=k), backend=backend)
+
+
+def _pass_rate(results: list[ValidationResult] | None) -> float:
+    return sum(r.passed for r in results) / len(results) if results else 0.0
+
+
+def _report_run(console: Console, args: argparse.Namespace, mode: str, res: FsgResult,
+                results: list[ValidationResult] | None) -> None:
+    """What one mode made: grasps, time, shortfall and its reasons, how many passed."""
+    per = res.elapsed_s / len(res.grasps) if res.grasps else float("nan")
+    label = "power" if mode == "power" else "FSG"
+    console.print(f"{label}: {len(res.grasps)}/{args.n} grasps in {res.elapsed_s:.2f} s "
+                  f"({per:.3f} s/grasp, stopped: {res.stopped}; finger sets "
+                  f"{[len(s) for s in res.finger_sets]})")
+    if res.shortfall:
+        console.print(f"shortfall: {res.shortfall} grasps ({res.stopped}); rejections "
+                      f"{ {k: v for k, v in res.stats.items() if not k.startswith(('pairs', 'usable'))} }",
+                      style="yellow")
+    if results is not None:
+        console.print(f"{args.validate} ({label}): {sum(r.passed for r in results)} of "
+                      f"{len(results)} passed")
+
+
+def _fsg(args: argparse.Namespace, hand: Hand, obj: ObjectAsset, demo: Demo | None,
+         workers: int, progress: Callable[[int], None]) -> FsgResult:
+    """FSG on the hand's manual workspace, or one centred on ``demo``."""
+    from augment.autows.build import build_workspace
+    from augment.autows.seed import DemoSeed
+    from augment.object_cloud import object_cloud
+    from dexaug.pipeline.run import demo_fingers, demo_table, generate_grasps
+
+    ws = build_workspace(hand, demo=DemoSeed.from_demo(demo) if demo else None)
+    return generate_grasps(hand, object_cloud(obj), ws, n=args.n, fingers=args.fingers,
+                           finger_names=demo_fingers(demo) if demo else None,
+                           table=demo_table(demo, args.table), use_affordance=not args.no_aff,
+                           finger_iteration=(args.finger_iteration
+                                             if args.finger_iteration is not None
+                                             else demo is None),
+                           link_penetration=not args.no_linkpen, seed=args.seed,
+                           time_budget_s=args.budget, workers=workers,
+                           hold_protocol=_hold_protocol(args), progress=progress)
+
+
+def _power(args: argparse.Namespace, hand: Hand, obj: str, workers: int,
+           progress: Callable[[int], None]) -> FsgResult:
+    """Power grasps (:mod:`augment.power`), kept when the actuators can hold the loads of
+    --validate's protocol (lift-drop's when validation is off)."""
+    from augment.power import generate_power
+
+    return generate_power(hand, obj, n=args.n, seed=args.seed, workers=workers,
+                          time_budget_s=args.budget, protocol=_hold_protocol(args),
+                          use_affordance=not args.no_aff, progress=progress)
+
+
+def _hold_protocol(args: argparse.Namespace) -> str:
+    return args.validate if args.validate != "none" else "lift-drop"
+
+
+def _generate_provenance(args: argparse.Namespace, hand: str, backend: str,
+                         demo: Demo | None, modes: list[str]) -> dict[str, object]:
+    """What made a ``generate`` table: every option as given (JSON), the hand, protocol,
+    seed and backend as their own attributes, and the demonstration itself (so ``dexaug arm
+    --grasps as-it-lies`` can rebuild its workspace)."""
+    from sim.demo import demo_to_json
+
+    options = {k: str(v) if isinstance(v, Path) else v for k, v in vars(args).items()
+               if k not in ("handler",) and not callable(v)}
+    return {"hand": hand, "seed": args.seed, "protocol": args.validate, "backend": backend,
+            "mode": args.mode, "modes_run": " ".join(modes),
+            "options": json.dumps(options, sort_keys=True, default=str),
+            "demo_source": str(demo.source) if demo is not None else "",
+            "demo": json.dumps(demo_to_json(demo)) if demo is not None else ""}
