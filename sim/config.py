@@ -76,6 +76,17 @@ class Section:
             raise self.error(key, f"expected a number in [{min}, {max}], got {value}")
         return float(value)
 
+    def like(self, key: str, default: bool | int | float | str) -> Any:
+        """``key`` read with the type of its ``default`` (bool, int, float or str), the
+        default when absent: what a flat parameter table of a dataclass needs per field."""
+        if isinstance(default, bool):
+            return self.bool(key, default)
+        if isinstance(default, int):
+            return self.int(key, default)
+        if isinstance(default, float):
+            return self.float(key, default)
+        return self.str(key, default)
+
     def floats(self, key: str, length: int | None = None, default: Any = _MISSING) -> list[float]:
         value = self._raw(key, default)
         if value is default:

@@ -96,10 +96,7 @@ def load_fsg_params(hand: HandConfig, path: Path | str | None = None) -> FsgPara
     d = FsgParams(**geometry)
     kw: dict[str, Any] = dict(geometry)
     for name in set(fields) - set(HAND_FIELDS):
-        default = getattr(d, name)
-        kw[name] = (sec.bool(name, default) if isinstance(default, bool)
-                    else sec.int(name, default) if isinstance(default, int)
-                    else sec.float(name, default))
+        kw[name] = sec.like(name, getattr(d, name))
     try:
         return FsgParams(**kw)
     except ValueError as exc:

@@ -87,9 +87,9 @@ def _contacts(scene: Scene, finger_of: dict[int, int], contact_m: float
     fingers = np.array([finger_of.get(int(b), -1) for b in con.body_a], int)
     keep = touch & (fingers >= 0)
     pos, quat = scene.object_pose()
-    inv = quat_to_mat(quat).T
-    pts = (con.points_a[keep] - pos) @ inv.T
-    nrm = -con.normal[keep] @ inv.T              # hand → object is inward: flip to outward
+    rot = quat_to_mat(quat)                      # object → world; rows @ rot = world → object
+    pts = (con.points_a[keep] - pos) @ rot
+    nrm = -con.normal[keep] @ rot                # hand → object is inward: flip to outward
     labels = con.body_a[keep]
     if not len(pts):
         return pts, nrm, np.zeros(0, int), palm

@@ -9,7 +9,6 @@ import dataclasses
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 from augment.autows.params import AUGMENT_TOML
 from sim.config import load_toml
@@ -78,13 +77,7 @@ def load_power_params(path: Path | str | None = None) -> PowerParams:
     fields = [f.name for f in dataclasses.fields(PowerParams)]
     sec.reject_unknown(set(fields))
     d = PowerParams()
-    kw: dict[str, Any] = {}
-    for name in fields:
-        default = getattr(d, name)
-        kw[name] = (sec.str(name, default) if isinstance(default, str)
-                    else sec.int(name, default) if isinstance(default, int)
-                    else sec.float(name, default))
     try:
-        return PowerParams(**kw)
+        return PowerParams(**{name: sec.like(name, getattr(d, name)) for name in fields})
     except ValueError as exc:
         raise ConfigError(f"{sec.where()}: {exc}") from None

@@ -3,10 +3,11 @@
 Palm frames follow the hand convention (DESIGN §3: +y out of the palm face toward the
 object), so a frame over a surface point with outward normal n has +y = −n, and its roll about
 n (where the fingers point) is free: a sampled angle. The distance along n is found in the
-simulation (the validator's scene), not from a palm box: the open hand is moved until its nearest geom
-is ``standoff_m`` from the object, by bisection on MuJoCo's signed distance, which works for
-any hand and any object shape; a placement whose palm then stays far from the object (the
-point lies on an edge the palm overhangs) is dropped. Units: metres, radians, quaternions wxyz.
+simulation (the validator's scene), not from a palm box: the open hand is moved until its
+nearest geom is ``standoff_m`` from the object, by bisection on MuJoCo's signed distance,
+which works for any hand and any object shape; a placement whose palm then stays far from the
+object (the point lies on an edge the palm overhangs) is dropped. Units: metres, radians,
+quaternions wxyz.
 """
 
 from __future__ import annotations
@@ -80,4 +81,3 @@ def place_palm(scene: Scene, point: np.ndarray, normal: np.ndarray, palm_quat: n
     if palm_gap > max_palm_gap_m or hand_gap < standoff_m - _GAP_TOLERANCE_M:
         return None
     return pos
-
