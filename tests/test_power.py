@@ -102,6 +102,25 @@ def test_power_config_is_checked_on_load(tmp_path: Path) -> None:
     bad.write_text("[power]\nstandof_m = 0.01\n")
     with pytest.raises(ConfigError, match="standof_m"):
         load_power_params(bad)
+    bad.write_text("[power]\nsettle_free = 1\n")
+    with pytest.raises(ConfigError, match="settle_free"):
+        load_power_params(bad)
+
+
+def test_a_hand_folder_overrides_the_power_parameters(tmp_path: Path) -> None:
+    base = tmp_path / "augment.toml"
+    base.write_text("[power]\nstandoff_m = 0.004\nsettle_free = true\n")
+    hand = tmp_path / "hand.toml"
+    hand.write_text("[power]\nsettle_free = false\n")
+    p = load_power_params(base, hand_file=hand)
+    assert p.standoff_m == 0.004 and p.settle_free is False   # hand's key wins
+    assert load_power_params(base).settle_free is True
+    hand.write_text("[power]\nsettle = true\n")
+    with pytest.raises(ConfigError, match=r"hand\.toml.*settle"):
+        load_power_params(base, hand_file=hand)
+    hand.write_text("[power]\nclose_time_s = 0\n")
+    with pytest.raises(ConfigError, match=r"hand\.toml: power.*close_time_s"):
+        load_power_params(base, hand_file=hand)
 
 
 @needs_menagerie
@@ -133,3 +152,28 @@ def test_auto_adds_power_grasps_only_where_fingertips_fail(tmp_path: Path) -> No
         assert len(t) + len(t.rejected) == 4 * len(modes.split())
     assert main(["generate", "--object", BLEACH, "--mode", "auto", "--validate", "none",
                  "--out", str(tmp_path / "x.h5")]) == 2
+
+
+@needs_menagerie
+def test_a_released_object_is_pushed_to_where_the_fingers_hold_it() -> None:
+    """close_on_object's release: a cylinder 12 mm off the gripper's centre line stays where it
+    was while held, and is pushed onto the centre line by the first pad once let go."""
+    from sim.hand.model import Hand
+    from sim.transforms import mat_to_quat
+    from sim.world.closing import close_on_object
+    from sim.world.objects import load_object
+    from sim.world.scene import OBJECT_HOME, Scene
+
+    hand = Hand.load("robotiq_2f85")
+    drivers = np.array([n.endswith("driver_joint") for n in hand.joint_names])
+    closed = hand.fill_coupled(np.where(drivers, hand.upper, 0.0))
+    scene = Scene(hand, load_object("cylinder"))
+    # palm +y along object +x (approach from −x), the pads closing along object y
+    quat = mat_to_quat(np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]]))
+    palm = np.array([-0.09, 0.012, 0.0])
+    held = close_on_object(scene, palm, quat, hand.open_pose, closed)
+    assert np.allclose(scene.object_pose()[0], OBJECT_HOME)
+    freed = close_on_object(scene, palm, quat, hand.open_pose, closed, release_after_s=0.0)
+    moved = scene.object_pose()[0] - OBJECT_HOME
+    assert abs(moved[1] - 0.012) < 0.002, moved                       # onto the centre line
+    assert abs(freed.palm_pos[1]) < abs(held.palm_pos[1]) - 0.003    # read where it ended

@@ -12,8 +12,11 @@ the hand's actuators. The data flow:
    whose palm then stays farther than ``max_palm_gap_m`` (it overhangs an edge) are dropped.
 2. :mod:`augment.power.generate`: close the hand from the approach posture toward the hand's
    ``close_pose`` with the object held still (:func:`sim.world.closing.close_on_object`, in
-   the validator's own scene, so contacts are the simulator's), read back the grasp and its
-   contacts (the palm moved back out if a link was left inside the object), score it with the
+   the validator's own scene, so contacts are the simulator's), then let the object go while
+   the fingers relax (``settle_free``; gravity off) so it settles where the hand holds it, as
+   it does in a real hand and in the validator's free closing; read back the grasp relative
+   to where the object came to rest and its contacts (the palm moved back out if a link was
+   left inside the object), score it with the
    actuator effort the validation's loads need (:class:`sim.validate.batch.SceneEffort`) and
    keep those that touch with the thumb and at least one other finger and need at most
    ``max_effort`` of the force limits.

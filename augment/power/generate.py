@@ -111,20 +111,20 @@ _PLACEMENTS_PER_CLOSING = 10
 _CLEARING_STEPS = 3
 
 
-def _clear_of_object(scene: Scene, grasp: Grasp, normal: np.ndarray,
-                     contact_m: float) -> Grasp | None:
-    """``grasp`` with its palm moved back along the surface ``normal`` until no hand geom is
-    more than ``contact_m`` inside the object (None when three moves do not get it out), the
-    scene left placed at it. Why: servos closing on a held object can leave a link a
+def _clear_of_object(scene: Scene, grasp: Grasp, contact_m: float) -> Grasp | None:
+    """``grasp`` with its palm moved back, away from the palm face (frame_palm −y), until no
+    hand geom is more than ``contact_m`` inside the object (None when three moves do not get it
+    out), the scene left placed at it. Why: servos closing on an object can leave a link a
     millimetre or two inside it, and in a validation, where the object is free, that overlap
     kicks the object away before the fingers close."""
     pos = grasp.palm_pos.copy()
+    back = -quat_to_mat(grasp.palm_quat_wxyz)[:, 1]
     for _ in range(_CLEARING_STEPS + 1):
         _, hand_gap = hand_gaps_m(scene, pos, grasp.palm_quat_wxyz, grasp.joints)
         if hand_gap >= -contact_m:
             mujoco.mj_forward(scene.model, scene.data)
             return Grasp.from_arrays(pos, grasp.palm_quat_wxyz, grasp.joints)
-        pos = pos + normal * (-hand_gap)
+        pos = pos + back * (-hand_gap)
     return None
 
 
@@ -156,6 +156,7 @@ def _search(job: _Job, seed: int, worker: int, n: int, deadline: float,
     stats: Counter[str] = Counter()
     out: list[FsgGrasp] = []
     closings = n * p.tries_per_grasp
+    release_s = p.close_time_s + p.hold_time_s if p.settle_free else math.inf
     for _ in range(closings * _PLACEMENTS_PER_CLOSING):
         if len(out) >= n or time.time() >= deadline or stats["closed"] >= closings:
             break
@@ -169,8 +170,8 @@ def _search(job: _Job, seed: int, worker: int, n: int, deadline: float,
             continue
         stats["closed"] += 1
         grasp = close_on_object(scene, pos, quat, q_open, q_close, close_time_s=p.close_time_s,
-                                hold_time_s=p.hold_time_s)
-        grasp = _clear_of_object(scene, grasp, normal, p.contact_m)
+                                hold_time_s=p.hold_time_s, release_after_s=release_s)
+        grasp = _clear_of_object(scene, grasp, p.contact_m)
         if grasp is None:
             stats["penetration"] += 1
             continue
@@ -214,7 +215,7 @@ def generate_power(hand: Hand, obj_name: str, *, n: int = 10, seed: int = 0,
     inside the object), ``no_opposition`` (the closed hand does not touch with the thumb
     and another finger), ``duplicate``, ``effort`` (the actuators cannot hold the loads at
     these contacts), ``accepted`` (``palm_contact`` of them with the palm touching)."""
-    p = params or load_power_params()
+    p = params or load_power_params(hand_file=hand.config.file)
     _postures(hand, p)
     job = _Job(hand.name, obj_name, protocol, p, use_affordance)
     t0 = time.perf_counter()

@@ -29,16 +29,11 @@ class PowerParams:
         approach_pose / close_pose: the hand's named postures (``[grasp]`` of its hand.toml)
             to close from and toward.
         close_time_s / hold_time_s: how long the controls ramp, then hold, while closing.
-        contact_m: a hand body within this distance of the object touches it.
-        max_effort: keep grasps whose least worst actuator effort for the validation's loads
-            is at most this fraction of the force limits (1: the actuators can just hold).
-        oversample: find this many times the grasps asked for and keep those of least
-            actuator effort (README "Power grasps": the effort ranks them, AUC 0.66–0.84).
-        auto_below: ``dexaug generate --mode auto`` adds power grasps when fewer than this
-            share of its fingertip grasps pass validation (the issue's "power grasps where the
-            fingertip mode is below 30 %").
-        tries_per_grasp: closings (one simulation each) per requested grasp before giving up;
-            placements, which cost a few collision passes, up to ten times as many.
+        settle_free: the object is held still while the fingers close and squeeze, then let
+            go while they relax (gravity off), so it settles where the hand holds it — as it
+            would in a real hand, and as it is in a validation, whose closing leaves it free
+            — and the grasp is read where it came to rest. False: held throughout (the grasp
+            records where the links stopped on an object that could not move).
     """
 
     standoff_m: float = 0.003
@@ -47,6 +42,7 @@ class PowerParams:
     close_pose: str = "close_pose"
     close_time_s: float = 0.5
     hold_time_s: float = 0.3
+    settle_free: bool = True
     contact_m: float = 0.002
     max_effort: float = 1.0
     tries_per_grasp: int = 20
@@ -70,14 +66,24 @@ class PowerParams:
             raise ValueError(f"tries_per_grasp must be >= 1, got {self.tries_per_grasp}")
 
 
-def load_power_params(path: Path | str | None = None) -> PowerParams:
-    """``[power]`` of ``configs/augment.toml`` (or ``path``); missing keys take the defaults of
-    :class:`PowerParams`; errors name the file and key."""
-    sec = load_toml(path or AUGMENT_TOML).section("power", {})
+def load_power_params(path: Path | str | None = None,
+                      hand_file: Path | str | None = None) -> PowerParams:
+    """``[power]`` of ``configs/augment.toml`` (or ``path``), then the keys a hand's own
+    ``hand.toml`` sets in its ``[power]`` table (``hand_file``; e.g. when its fingers close
+    differently); missing keys take the defaults of :class:`PowerParams`; errors name the file
+    and key."""
     fields = [f.name for f in dataclasses.fields(PowerParams)]
-    sec.reject_unknown(set(fields))
     d = PowerParams()
-    try:
-        return PowerParams(**{name: sec.like(name, getattr(d, name)) for name in fields})
-    except ValueError as exc:
-        raise ConfigError(f"{sec.where()}: {exc}") from None
+    values: dict[str, object] = {}
+    sections = [load_toml(path or AUGMENT_TOML).section("power", {})]
+    if hand_file is not None:
+        sections.append(load_toml(hand_file).section("power", {}))
+    for sec in sections:
+        sec.reject_unknown(set(fields))
+        values.update({name: sec.like(name, getattr(d, name)) for name in fields
+                       if name in sec.data})
+        try:
+            PowerParams(**{name: values.get(name, getattr(d, name)) for name in fields})
+        except ValueError as exc:
+            raise ConfigError(f"{sec.where()}: {exc}") from None
+    return PowerParams(**{name: values.get(name, getattr(d, name)) for name in fields})

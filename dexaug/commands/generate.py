@@ -106,7 +106,7 @@ def generate_cmd(args: argparse.Namespace, console: Console) -> int:
         runs = [(mode := "power" if args.mode == "power" else "fingertip", *run(mode))]
         if args.mode == "auto":
             rate = _pass_rate(runs[0][2])
-            below = load_power_params().auto_below
+            below = load_power_params(hand_file=hand.config.file).auto_below
             if rate < below and demo is None and not args.fingers and args.table is None:
                 console.print(f"fingertip grasps: {100 * rate:.0f} % pass {args.validate} "
                               f"(below {100 * below:.0f} %): adding power grasps")

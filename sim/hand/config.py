@@ -214,7 +214,9 @@ def load_hand_config(name_or_path: str | Path) -> HandConfig:
         known = hand_names()
         raise ConfigError(f"unknown hand {name_or_path!r}: no {path}; known hands: {known}")
     root = load_toml(path)
-    root.reject_unknown({"model", "palm", "fingers", "grasp", "geometry", "teleop", "mount"})
+    # [power] overrides configs/augment.toml [power] for this hand; augment.power checks it
+    root.reject_unknown({"model", "palm", "fingers", "grasp", "geometry", "teleop", "mount",
+                         "power"})
     teleop = root.section("teleop", {})
     teleop.reject_unknown({"servo_kp_scale"})
     teleop_kp = (teleop.float("servo_kp_scale", min=0.1, max=100.0)
