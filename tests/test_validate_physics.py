@@ -11,6 +11,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from sim.errors import ConfigError
 from sim.hand.model import Hand
 from sim.hand.reference_grasps import load_reference_grasps
 from sim.validate.config import PROTOCOLS, ValidateConfig
@@ -102,6 +103,32 @@ def test_servos_and_mass_are_the_configured_ones(validator: Validator, shadow: H
         np.testing.assert_allclose(m.actuator_gainprm[acts, 0], scale * own.actuator_gainprm[:, 0])
         np.testing.assert_allclose(m.actuator_forcerange[acts], own.actuator_forcerange)
         assert m.body_mass[scene.obj_body] == pytest.approx(load_object(OBJECT).mass_kg)
+
+
+@needs_menagerie
+def test_a_hand_names_its_own_validation_servo_gain(tmp_path, shadow: Hand) -> None:
+    """hand.toml [validate] servo_kp_scale replaces validate.toml's for that hand in lift-drop
+    and six-dir (read back from the compiled model); dgb keeps its own absolute gains."""
+    import dataclasses
+
+    from sim.hand.config import load_hand_config
+
+    src = shadow.config.file.read_text() + "\n[validate]\nservo_kp_scale = 1.5\n"
+    (tmp_path / "hand.toml").write_text(src)
+    cfg = load_hand_config(tmp_path / "hand.toml")
+    assert cfg.validate_kp_scale == 1.5
+    own = Hand(dataclasses.replace(shadow.config, validate_kp_scale=1.5))
+    val = Validator(own, load_object("cylinder"))
+    for protocol in ("lift-drop", "six-dir"):
+        m = val.scene(protocol).model
+        np.testing.assert_allclose(m.actuator_gainprm[val.scene(protocol).hand_act, 0],
+                                   1.5 * shadow.model.actuator_gainprm[:, 0])
+    m = val.scene("dgb").model
+    np.testing.assert_allclose(m.actuator_gainprm[val.scene("dgb").hand_act, 0],
+                               val.config.dgb.servos.kp)
+    (tmp_path / "hand.toml").write_text(src.replace("servo_kp_scale = 1.5", "servo_kp = 1.5"))
+    with pytest.raises(ConfigError, match=r"hand\.toml: validate.*servo_kp"):
+        load_hand_config(tmp_path / "hand.toml")
 
 
 def test_dgb_scene_floats_the_palm(validator: Validator, shadow: Hand) -> None:

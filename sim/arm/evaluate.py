@@ -96,7 +96,7 @@ def evaluate_on_arm(arm: ArmConfig, hand: Hand, obj: ObjectAsset, grasps: GraspS
     counts (placement, grasp) pairs (total known once every pose's grasps are)."""
     cfg = config or ValidateConfig.load()
     validator = Validator(hand, obj, cfg)
-    scene = ArmScene(arm, hand, obj, contact=cfg.common.contact, servos=cfg.common.servos)
+    scene = ArmScene(arm, hand, obj, contact=cfg.common.contact, servos=validator.servos)
     table = scene.table
     (cx, cy), (hx, hy) = table.center_xy_m, table.half_size_xy_m
     poses = resting_poses(obj)

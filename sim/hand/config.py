@@ -93,6 +93,10 @@ class HandConfig:
     #: bridge's own (None: the bridge's); a hand whose light links go unstable at the bridge's
     #: scale names a lower one here
     teleop_kp_scale: float | None = None
+    #: ``[validate] servo_kp_scale``: this hand's servo gain scale in lift-drop and six-dir,
+    #: over ``configs/validate.toml``'s (None: that one); a hand whose servos go numerically
+    #: unstable at the protocol's scale names one here, with its reason in the model card
+    validate_kp_scale: float | None = None
     #: ``[mount]``: the hand's pose on an arm's flange (None: the hand has no arm mount)
     mount: Mount | None = None
 
@@ -207,6 +211,13 @@ def hand_config_path(name_or_path: str | Path) -> Path:
     return path if path.suffix == ".toml" else hand_dir(str(name_or_path)) / "hand.toml"
 
 
+def _kp_scale(sec: Section) -> float | None:
+    """A ``servo_kp_scale`` table (``[teleop]``, ``[validate]``): the scale, or None when the
+    table does not name one."""
+    sec.reject_unknown({"servo_kp_scale"})
+    return sec.float("servo_kp_scale", min=0.1, max=100.0) if "servo_kp_scale" in sec else None
+
+
 def load_hand_config(name_or_path: str | Path) -> HandConfig:
     """Load ``configs/hands/<name>/hand.toml`` (or a TOML path) and check it is self-consistent."""
     path = hand_config_path(name_or_path)
@@ -215,12 +226,9 @@ def load_hand_config(name_or_path: str | Path) -> HandConfig:
         raise ConfigError(f"unknown hand {name_or_path!r}: no {path}; known hands: {known}")
     root = load_toml(path)
     # [power] overrides configs/augment.toml [power] for this hand; augment.power checks it
-    root.reject_unknown({"model", "palm", "fingers", "grasp", "geometry", "teleop", "mount",
-                         "power"})
-    teleop = root.section("teleop", {})
-    teleop.reject_unknown({"servo_kp_scale"})
-    teleop_kp = (teleop.float("servo_kp_scale", min=0.1, max=100.0)
-                 if "servo_kp_scale" in teleop else None)
+    root.reject_unknown({"model", "palm", "fingers", "grasp", "geometry", "teleop", "validate",
+                         "mount", "power"})
+    teleop_kp, validate_kp = (_kp_scale(root.section(name, {})) for name in ("teleop", "validate"))
     geometry = root.section("geometry")
     geometry.reject_unknown({"fingertip_width_m", "link_radius_m"})
     sizes = {k: geometry.float(k) for k in ("fingertip_width_m", "link_radius_m")}
@@ -264,5 +272,6 @@ def load_hand_config(name_or_path: str | Path) -> HandConfig:
         fingers=fingers,
         postures=postures,
         teleop_kp_scale=teleop_kp,
+        validate_kp_scale=validate_kp,
         mount=_mount(root),
     )

@@ -9,12 +9,12 @@ the contacts and runs one protocol (:mod:`sim.validate.lift_drop`, :mod:`sim.val
 ``dgb`` is DexGraspBench's evaluation with its own scene (floating palm, kp 5 / ±3 N·m servos,
 0.1 kg object, μ 0.6) and closing (:mod:`sim.validate.dgb`, :mod:`sim.validate.stages`).
 
-lift-drop and six-dir multiply each hand servo's own kp by ``servo_kp_scale`` (5 by default;
-force limits stay the model's): kp is the controller's gain, and at the Menagerie models'
-≈ 1 N·m/rad a grasp that holds the object still turns it past the 15° limit under its own
-weight. Every scene's contact values are set on hand and object geoms alike, so they are what
-every contact simulates. Simulation is deterministic: the same grasp gives the same result on
-any worker.
+lift-drop and six-dir multiply each hand servo's own kp by ``servo_kp_scale`` (5 by default,
+or the hand's own ``[validate] servo_kp_scale``; force limits stay the model's): kp is the
+controller's gain, and at the Menagerie models' ≈ 1 N·m/rad a grasp that holds the object
+still turns it past the 15° limit under its own weight. Every scene's contact values are set
+on hand and object geoms alike, so they are what every contact simulates. Simulation is
+deterministic: the same grasp gives the same result on any worker.
 """
 
 from __future__ import annotations
@@ -40,6 +40,7 @@ from sim.validate.six_dir import six_dir
 from sim.validate.stages import GraspStages, grasp_stages
 from sim.validate.targets import GraspTargets, finger_joint_mask, targets_from_contacts
 from sim.world.contacts import Contacts, contacts_between, merge_nearby
+from sim.world.hand_spec import ServoSettings
 from sim.world.objects import ObjectAsset
 from sim.world.scene import HAND_PREFIX, OBJECT_HOME, PhysicsOptions, Scene
 
@@ -95,7 +96,14 @@ class Validator:
             lift = self.config.lift_drop
             physics = PhysicsOptions(timestep_s=lift.timestep_s, impratio=lift.impratio)
         return Scene(self.hand, self.obj, contact=common.contact, physics=physics,
-                     servos=common.servos, contact_on_hand=True)
+                     servos=self.servos, contact_on_hand=True)
+
+    @property
+    def servos(self) -> ServoSettings:
+        """The hand servos of lift-drop and six-dir: ``[common] servo_kp_scale``, or the
+        hand's own ``[validate] servo_kp_scale`` where its hand.toml names one."""
+        scale = self.hand.config.validate_kp_scale
+        return self.config.common.servos if scale is None else ServoSettings(kp_scale=scale)
 
     # ------------------------------------------------------------------------------- set-up
 
