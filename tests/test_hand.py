@@ -93,6 +93,42 @@ def test_unknown_joint_in_config_names_file_and_joint(tmp_path: Path) -> None:
         Hand.load(bad)
 
 
+@needs_menagerie
+def test_a_fingertip_that_cannot_touch_is_refused(shadow: Hand) -> None:
+    """A fingertip body whose geoms all have contype = conaffinity = 0 (visual only) is a config
+    error naming the file and finger (the real model, its tip geoms' collision switched off)."""
+    from sim.hand.model_checks import check_fingertip_collision
+
+    m = shadow.spec().compile()                                    # a copy to edit
+    check_fingertip_collision(m, shadow.config, "shadow")          # as shipped: fine
+    tip = shadow.config.fingers[1]
+    geoms = m.geom_bodyid == m.body(tip.tip_body).id
+    m.geom_contype[geoms] = m.geom_conaffinity[geoms] = 0
+    with pytest.raises(ConfigError, match=rf"hand\.toml: fingers '{tip.name}'\.tip_body: .*"
+                                          r"no collision geometry"):
+        check_fingertip_collision(m, shadow.config, "shadow")
+
+
+@needs_menagerie
+def test_a_coupling_the_model_does_not_simulate_is_refused() -> None:
+    """The Barrett BH8's distal joints follow their medial joints by an equality constraint
+    (coefficient 0.3217); a config with another coefficient, or none, is refused naming the
+    file and key."""
+    import dataclasses
+
+    barrett = load_hand_config("barrett_bh8")
+    finger = barrett.fingers[0]
+    follower, (leader, coef) = next(iter(finger.coupled_to.items()))
+    for coupled, message in (({follower: (leader, 0.5)}, rf"{follower}: the config says"),
+                             ({}, "treats both as independent")):
+        bad = dataclasses.replace(barrett, fingers=(dataclasses.replace(finger, coupled_to=coupled),
+                                                    *barrett.fingers[1:]))
+        with pytest.raises(ConfigError, match=rf"barrett_bh8/hand\.toml: fingers "
+                                              rf"'{finger.name}'\.coupled_to.*{message}"):
+            Hand(bad)
+    assert coef == pytest.approx(0.3217, abs=1e-4)
+
+
 def test_config_errors_name_the_key(tmp_path: Path) -> None:
     base = hand_config_path("shadow_right").read_text()
     cases = {

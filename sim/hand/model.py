@@ -20,6 +20,7 @@ from sim.errors import AssetError, ConfigError, GraspInputError
 from sim.hand.config import HandConfig, load_hand_config
 from sim.hand.conventions import palm_frame_problems
 from sim.hand.kinematics import TreeKinematics
+from sim.hand.model_checks import check_model
 from sim.paths import ensure_menagerie_root
 from sim.transforms import pose_inv, pose_mul, quat_to_mat
 
@@ -138,6 +139,7 @@ class Hand:
         for posture, values in cfg.postures.items():
             for name in values:
                 need("joint", f"grasp.{posture}", name, joints)
+        check_model(m, cfg, self.model_path)
 
     # ----------------------------------------------------------------------------- joint vectors
 
