@@ -39,7 +39,8 @@ def close_on_object(scene: Scene, palm_pos: np.ndarray, palm_quat: np.ndarray,
     gravity = m.opt.gravity.copy()
     m.opt.gravity[:] = 0.0
     ramp = max(int(close_time_s / m.opt.timestep), 1)
-    pinned_steps = release_after_s / m.opt.timestep
+    pinned_steps = (round(release_after_s / m.opt.timestep) if math.isfinite(release_after_s)
+                    else math.inf)
     step = 0
 
     def advance() -> None:
