@@ -9,6 +9,9 @@ twice — in demonstration mode (object held) and in free mode — and measured:
 - **demo**: the demo-mode recording yields a demonstration (``extract_demos``);
 - **human fingers**: the demo's fingers include every finger whose *human* pad was within
   8 mm of the object at the grasp moment (the fingers the human used);
+- **pad gap**: at the grasp moment in demo mode, the gap between the simulated distal link of each
+  of the human's fingers and the object (``mj_geomDistance``; the issue's "simulated pads to the
+  object surface");
 - **lifted**: in free mode the object's median height over the hold phase is ≥ 60 % of the
   operator's lift height above where it rested.
 
@@ -66,6 +69,38 @@ def _human_fingers(ep, obj: str, hand) -> list[str]:
     return sorted(n for n, g in zip(names, gap, strict=True) if g < HUMAN_TOUCH_M)
 
 
+def _pad_gaps_m(path: Path, ep, obj: str, hand, fingers: list[str]) -> list[float]:
+    """For each finger in ``fingers``: the gap (metres, negative: pressed in) between its
+    distal link's collision geoms and the object in the simulated state nearest the human's
+    grasp moment (``mj_geomDistance`` on the recorded hand joints, palm and object poses)."""
+    import mujoco
+
+    from sim.world.objects import load_object
+    from sim.world.scene import HAND_PREFIX, Scene
+    from teleop.record.session import open_session
+
+    states = [m for _, m in open_session(path).json_messages("/state")]
+    device_s = {f.seq: f.device_time_s for f in ep.frames}
+    t = np.array([device_s.get(m["seq"], np.nan) for m in states])
+    m_state = states[int(np.nanargmin(np.abs(t - ep.grasp_time_s)))]
+    sc = Scene(hand, load_object(obj))
+    q = np.asarray(m_state["qpos"], float)
+    sc.set_palm_pose(m_state["palm_pos_m"], m_state["palm_quat_wxyz"], q)
+    sc.set_hand_joints(q)
+    sc.set_object_pose(np.asarray(m_state["object_pos_m"]), np.asarray(m_state["object_quat_wxyz"]))
+    model, data = sc.model, sc.data
+    mujoco.mj_forward(model, data)
+    obj_geoms = np.flatnonzero(sc.obj_geom_mask & (model.geom_contype | model.geom_conaffinity > 0))
+    gaps = []
+    for f in fingers:
+        body = model.body(HAND_PREFIX + hand.config.finger(f).links[-1]).id
+        geoms = [g for g in np.flatnonzero(model.geom_bodyid == body)
+                 if model.geom_contype[g] or model.geom_conaffinity[g]]
+        gaps.append(min(mujoco.mj_geomDistance(model, data, int(a), int(b), 0.05, None)
+                        for a in geoms for b in obj_geoms))
+    return gaps
+
+
 def _hold_height_m(path: Path, ep) -> float:
     from teleop.record.session import open_session
 
@@ -110,8 +145,10 @@ def run_one(job: tuple[str, str, int, str, str]) -> dict:
     d.mkdir(parents=True, exist_ok=True)
     raw = write_session(ep, d / "raw.mcap", overwrite=True)
     row["human"] = _human_fingers(ep, obj, hand)
+    demo_path = rerecord(raw, d / "demo.mcap", object_mode="demo")
+    row["pad_gaps_m"] = _pad_gaps_m(demo_path, ep, obj, hand, row["human"])
     try:
-        demos = extract_demos(rerecord(raw, d / "demo.mcap", object_mode="demo"))
+        demos = extract_demos(demo_path)
     except DemoError as exc:
         demos, row["why"] = [], str(exc).split(": ", 2)[-1][:90]
     row["fingers"] = sorted(max(demos, key=lambda x: len(x.fingers)).fingers) if demos else []
@@ -191,6 +228,11 @@ def main() -> None:
     ok = [r for r in rows if "skipped" not in r]
     n = len(ok)
     share = {k: sum(bool(r[k]) for r in ok) for k in ("demo", "human_fingers", "lifted")}
+    gaps = np.concatenate([r["pad_gaps_m"] for r in ok]) if ok else np.zeros(0)
+    print(f"\nsimulated pads of the human's fingers at the grasp moment (demo mode): gap to the "
+          f"object median {np.median(gaps) * 1e3:.1f} mm, |gap| median "
+          f"{np.median(np.abs(gaps)) * 1e3:.1f} mm, within 3 mm {np.mean(np.abs(gaps) <= 0.003):.0%}"
+          f" ({len(gaps)} pads)")
     print(f"\n{args.speed} speed, {n} episodes ({len(rows) - n} skipped), {wall:.0f} s: demos "
           f"{share['demo']}/{n} ({100 * share['demo'] / max(n, 1):.0f} %), with the human's "
           f"fingers {share['human_fingers']}/{n} ({100 * share['human_fingers'] / max(n, 1):.0f} "

@@ -43,7 +43,13 @@ def frames() -> list[HandFrame]:
 
 @pytest.fixture(scope="module")
 def config():
-    return load_retarget_config()
+    """teleop.toml's [retarget] without the One-Euro input filter: these tests check the IK's
+    geometry frame by frame against the operator's *raw* joints (the filter is
+    tests/test_retarget_closed_loop.py's)."""
+    from teleop.retarget.input_filter import InputFilterSettings
+
+    return dataclasses.replace(load_retarget_config(),
+                               input_filter=InputFilterSettings(min_cutoff_hz=0.0))
 
 
 @pytest.fixture(scope="module")

@@ -335,6 +335,12 @@ class Scene:
         if self._hold_eq >= 0:
             self.data.eq_active[self._hold_eq] = 0
 
+    def base_world_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        """The hand base in the world (position, quaternion wxyz), from the simulated state:
+        where the weld has carried it, not the mocap target it follows."""
+        q = self.data.qpos[self.base_qadr:self.base_qadr + 7]
+        return q[:3].copy(), q[3:].copy()
+
     def palm_world_pose(self) -> tuple[np.ndarray, np.ndarray]:
         """frame_palm in the world, from the simulated hand state."""
         d, cfg, b = self.data, self.hand.config.palm, self.palm_body

@@ -6,7 +6,8 @@ Why a mixin of its own: the retargeter snaps finger-pad targets onto the object
 world minus ``world_offset_m``) at the pose the simulated object has *now* — the object drops,
 settles, is reset, is lifted in free mode. :meth:`SurfaceFeed._attach_surface` builds the
 surface when a scene is built (6–23 ms, once per object), and :meth:`SurfaceFeed._retarget`
-moves it to the object's current pose before each frame is retargeted. The surface is part of
+moves it to the object's current pose before each frame is retargeted, together with where the
+simulated hand's base is (snapped pad targets are solved in its frame). The surface is part of
 the scene state a failed ``choose_object`` restores, and the retargeter is always pointed at the
 bridge's current surface.
 
@@ -73,4 +74,6 @@ class SurfaceFeed:
         self.retargeter.press_m = self._assist.update(t_s, held_s)
         self.grasp_state = {"grasp_stable": stable, "grasp_held_s": round(held_s, 3),
                             "assist": round(self._assist.level, 3)}
-        return self.retargeter.step_frame(frame)
+        base_p, base_q = self.scene.base_world_pose()
+        sim_base = (base_p - self.config.world_offset_m, base_q)
+        return self.retargeter.step_frame(frame, sim_base)

@@ -25,6 +25,7 @@ from sim.hand.config import hand_dir, hand_names
 from sim.paths import CONFIG_DIR
 from sim.transforms import rpy_deg_to_quat
 from teleop.messages import JOINT_INDEX, OPENXR_JOINTS
+from teleop.retarget.input_filter import InputFilterSettings
 
 __all__ = ["TELEOP_CONFIG", "WRIST_TO_PALM_CONVENTION", "HandMapping", "RetargetConfig",
            "hand_mapping_path", "load_hand_mapping", "load_retarget_config"]
@@ -94,6 +95,10 @@ class RetargetConfig:
     pad_targets: bool
     phalanx_cost: float
     snap_distance_m: float
+    snap_in_sim_frame: bool
+    snap_phalanges: bool
+    snap_tangent_cost: float
+    input_filter: InputFilterSettings
     calibration_s: float
     hands: Mapping[str, HandMapping] = field(default_factory=dict)
 
@@ -108,7 +113,10 @@ _RETARGET_KEYS = {"solver", "iterations", "dt_s", "fingertip_cost", "posture_cos
                   "task_lm_damping", "damping", "limit_gain", "filter_time_constant_s",
                   "filter_alpha", "scale", "operator_hand_length_m", "wrist_position_scale",
                   "world_offset_m", "pinch_release_gap_m", "pinch_cost", "pad_targets",
-                  "phalanx_cost", "snap_distance_m", "calibration_s"}
+                  "phalanx_cost", "snap_distance_m", "snap_in_sim_frame", "snap_phalanges",
+                  "snap_tangent_cost", "input_min_cutoff_hz", "input_beta", "input_d_cutoff_hz",
+                  "input_beta_rotation",
+                  "calibration_s"}
 _HAND_KEYS = {"side", "fingers", "phalanges", "scale_finger", "wrist_pos_m", "wrist_rpy_deg"}
 
 
@@ -179,6 +187,7 @@ def load_retarget_config(path: Path | str | None = None) -> RetargetConfig:
                         "not both")
     if alpha is not None and alpha <= 0.0:
         raise sec.error("filter_alpha", "expected 0 < alpha <= 1 (1 = no filtering)")
+    d_in = InputFilterSettings()
     return RetargetConfig(
         file=Path(root.file), solver=solver,
         iterations=_bounded_int(sec, "iterations", 2, 1, 10),
@@ -199,6 +208,14 @@ def load_retarget_config(path: Path | str | None = None) -> RetargetConfig:
         pad_targets=sec.bool("pad_targets", True),
         phalanx_cost=sec.float("phalanx_cost", 0.5, min=0.0),
         snap_distance_m=sec.float("snap_distance_m", 0.015, min=0.0, max=0.05),
+        snap_in_sim_frame=sec.bool("snap_in_sim_frame", True),
+        snap_phalanges=sec.bool("snap_phalanges", True),
+        snap_tangent_cost=sec.float("snap_tangent_cost", 1.0, min=0.0, max=1.0),
+        input_filter=InputFilterSettings(
+            min_cutoff_hz=sec.float("input_min_cutoff_hz", d_in.min_cutoff_hz, min=0.0, max=100.0),
+            beta=sec.float("input_beta", d_in.beta, min=0.0),
+            d_cutoff_hz=_positive(sec, "input_d_cutoff_hz", d_in.d_cutoff_hz),
+            beta_rotation=sec.float("input_beta_rotation", d_in.beta_rotation, min=0.0)),
         calibration_s=sec.float("calibration_s", 1.0, min=0.0, max=60.0),
     )
 

@@ -23,39 +23,33 @@ Frames and correspondence
     scaled by ``scale`` about the wrist point, and become targets in the hand's base frame.
 
 Targets (contact-aware)
-    Each robot pulp site follows the operator's *pad* of its finger (``pad_targets``; the tip
-    joint moved by its radius to the palmar skin, :mod:`teleop.retarget.operator_points`), not
-    the tip joint's centre. Each robot middle/distal phalanx body origin in the hand's
-    ``[phalanges]`` follows its OpenXR intermediate/distal joint at ``phalanx_cost`` (lower
-    than ``fingertip_cost``), so whole-hand wraps and hooks bend the robot's phalanges as well,
-    not only put its fingertips somewhere. Near a thumb–finger pinch the targets are pulled
-    together (:func:`teleop.retarget.operator_points.pinch_adjust`) and a thumb–finger distance
-    task (:class:`teleop.retarget.tasks.PinchTask`, cost ``pinch_cost`` × w) joins the IK.
-    With an object given (:meth:`Retargeter.set_object`), pad targets within
-    ``snap_distance_m`` of its surface, or behind it, are moved onto it, or ``press_m`` into it
-    (the bridge's grasp assist; :mod:`teleop.retarget.snap`, :mod:`teleop.retarget.surface`).
+    The tracked hand is One-Euro smoothed first (:mod:`teleop.retarget.input_filter`). Each
+    robot pulp site follows the operator's finger *pad* (``pad_targets``,
+    :mod:`teleop.retarget.operator_points`); each robot phalanx body of the hand's
+    ``[phalanges]`` follows its OpenXR joint at ``phalanx_cost``, so wraps and hooks bend the
+    robot's phalanges too. Near a thumb–finger pinch the targets are pulled together and a
+    distance task (:class:`teleop.retarget.tasks.PinchTask`) joins the IK. With an object
+    (:meth:`Retargeter.set_object`), targets within ``snap_distance_m`` of its surface or behind
+    it go onto it, or ``press_m`` into it (the bridge's grasp assist), phalanx points a joint
+    radius outside (:mod:`teleop.retarget.snap`); a snapped pad is weighed along the surface
+    at ``snap_tangent_cost`` only, and with the simulated base pose (``sim_base``) it is solved
+    in *that* frame, so pads reach the object where the simulated hand really is.
 
 Scale calibration (:mod:`teleop.retarget.calibration`)
-    scale = robot length / operator length × ``scale``. :meth:`Retargeter.calibrate_scale`
-    measures the operator from frames at hand; without it the first ``calibration_s`` of
-    tracking are measured automatically, and :meth:`Retargeter.recalibrate` (the bridge's
-    control) measures the next ones again.
+    scale = robot length / operator length × ``scale``, the operator measured from frames at
+    hand (:meth:`Retargeter.calibrate_scale`), else over the first ``calibration_s`` of tracking
+    and again on :meth:`Retargeter.recalibrate` (the bridge's control).
 
 Solver settings
     One warm-started IK iteration per frame suffices (``benchmarks/bench_retarget.py``); ``damping``
     1e-3 (Levenberg–Marquardt on Δq) keeps that full step stable (1e-6: the thumb limit-cycles
     around a pinch); the output is low-pass filtered (:mod:`teleop.retarget.joint_filter`).
-
-Coupled joints and the wrist
-    Coupled joints are QP equality constraints (:class:`teleop.retarget.tasks.CouplingConstraint`).
-    Joints of no finger (the Shadow wrist) are frozen at the open pose (mink's
-    ``DofFreezingTask``): the floating base already provides the wrist pose.
+    Coupled joints are QP equality constraints (:class:`teleop.retarget.tasks.CouplingConstraint`);
+    joints of no finger (the Shadow wrist) are frozen at the open pose (the base is the wrist).
 
 Missing data
-    A frame without the hand, an untracked hand, invalid or non-finite wrist/fingertip joints or a
-    failed QP solve hold the last output (``held=True``) and count the reason
-    (:attr:`Retargeter.held_counts`); an invalid phalanx joint only drops its task. Nothing raises.
-
+    No hand, an untracked hand, invalid wrist/fingertip joints or a failed QP solve hold the last
+    output (``held=True``, reason counted in :attr:`Retargeter.held_counts`). Nothing raises.
 Quaternions are wxyz everywhere here; positions metres; joint values radians.
 """
 
@@ -76,10 +70,11 @@ from sim.transforms import mat_to_quat, pose_inv, pose_mul, pose_mul1, quat_mul,
 from teleop.messages import JOINT_INDEX, WRIST, HandFrame, HandState
 from teleop.retarget.calibration import ScaleCalibration, chain_length_m, operator_chain
 from teleop.retarget.config import WRIST_TO_PALM_CONVENTION, RetargetConfig, load_retarget_config
+from teleop.retarget.input_filter import HandInputFilter
 from teleop.retarget.joint_filter import JointFilter
 from teleop.retarget.operator_points import pad_points, pinch_adjust
 from teleop.retarget.result import HOLD_REASONS, RetargetResult
-from teleop.retarget.snap import snap_to_surface
+from teleop.retarget.snap import normal_axes, snap_pad_targets
 from teleop.retarget.surface import ObjectSurface
 from teleop.retarget.tasks import CouplingConstraint, PinchTask, PointsTask
 
@@ -88,6 +83,7 @@ __all__ = ["RetargetError", "Retargeter"]
 logger = logging.getLogger(__name__)
 
 Array = np.ndarray
+Pose = tuple[Array, Array]
 
 
 class RetargetError(DexaugError):
@@ -163,6 +159,7 @@ class Retargeter:
             self._constraints.append(CouplingConstraint(m, pairs))
         self._out_data = mujoco.MjData(m)
         self._filter = JointFilter(hand, cfg)
+        self._input = HandInputFilter(cfg.input_filter)
         self._pinch_task: PinchTask | None = None
         if self._thumb_row is not None and cfg.pinch_release_gap_m > 0.0 and len(self._other_rows):
             self._pinch_task = PinchTask(m, int(self._site_ids[self._thumb_row]),
@@ -205,6 +202,7 @@ class Retargeter:
         (the calibrated scale, a calibration under way and the object are kept)."""
         self.configuration.update(self.q_rest.copy())
         self._filter.reset()
+        self._input.reset()
         self.held_counts: dict[str, int] = dict.fromkeys(HOLD_REASONS, 0)
         self.frames_seen = 0
         nf = len(self.finger_names)
@@ -272,12 +270,15 @@ class Retargeter:
 
     # ----------------------------------------------------------------------------- per frame
 
-    def step_frame(self, frame: HandFrame) -> RetargetResult:
+    def step_frame(self, frame: HandFrame, sim_base: Pose | None = None) -> RetargetResult:
         """:meth:`step` with this hand's side of a :class:`HandFrame` and its device time."""
-        return self.step(frame.hand(self.mapping.side), frame.device_time_s)
+        return self.step(frame.hand(self.mapping.side), frame.device_time_s, sim_base)
 
-    def step(self, hand: HandState | None, time_s: float | None = None) -> RetargetResult:
-        """Retarget one tracking sample (None: the hand is absent from this frame)."""
+    def step(self, hand: HandState | None, time_s: float | None = None,
+             sim_base: Pose | None = None) -> RetargetResult:
+        """Retarget one tracking sample (None: the hand is absent from this frame);
+        ``sim_base``: where the simulated hand's base is (position, quaternion wxyz; the frame
+        of ``base_pos_m``), for the snapped targets (module docstring)."""
         self.frames_seen += 1
         if self.calibration is not None and (length := self.calibration.feed(hand, time_s)):
             self._set_operator_length(length, len(self.calibration.lengths))
@@ -295,9 +296,10 @@ class Retargeter:
         norm = math.sqrt(float(q_w @ q_w))
         if norm < 0.5:
             return self._hold("invalid_joints", time_s)
-        q_w = q_w / norm
-        r_w = quat_to_mat1(q_w)
-        p_w = pos[WRIST]
+        hand = self._input(hand, time_s)     # One-Euro smoothed (teleop.retarget.input_filter)
+        pos, q_w = hand.positions, hand.orientations_wxyz[WRIST]
+        q_w = q_w / math.sqrt(float(q_w @ q_w))
+        r_w, p_w = quat_to_mat1(q_w), pos[WRIST]
         tips = self._tip_idx
         radii = hand.radii[tips]
         centres = (pos[tips] - p_w) @ r_w             # fingertips in the operator wrist frame
@@ -310,11 +312,20 @@ class Retargeter:
         targets = self._p_bw + rel @ self._m_wb       # base frame, scaled about the wrist
         wrist_world = self.config.world_offset_m + self.config.wrist_position_scale * p_w
         base_p, base_q = pose_mul1(wrist_world, r_w, q_w, self._p_wb, self._q_wb)
-        moved = np.zeros(len(targets))
-        if self.surface is not None and self.config.snap_distance_m > 0.0:
-            targets, moved = self._snap(targets, base_p, base_q)
+        cfg, nf, moved = self.config, len(targets), np.zeros(len(targets))
+        snapping = self.surface is not None and cfg.snap_distance_m > 0.0
+        sim_frame, pad_cost = sim_base if cfg.snap_in_sim_frame else None, np.full((nf, 3), 1.0)
+        if snapping:
+            snapped = snap_pad_targets(self.surface, targets, (base_p, base_q),
+                                       cfg.snap_distance_m, self.press_m, sim_frame)
+            targets, moved = snapped.targets_m, snapped.moved_m
+            self._points.axes[:nf] = normal_axes(snapped.normals)
+            pad_cost[:, 1:] *= (1.0 - snapped.weight * (1.0 - cfg.snap_tangent_cost))[:, None]
+        self._points.cost[:3 * nf] = cfg.fingertip_cost * pad_cost.ravel()
         phal = self._phalanx_targets(hand, p_w, r_w)
-
+        if phal is not None and snapping and cfg.snap_phalanges:
+            phal = snap_pad_targets(self.surface, phal, (base_p, base_q), cfg.snap_distance_m, 0.0,
+                                    sim_frame, self.scale * hand.radii[self._phal_idx]).targets_m
         q_ik = self._solve(targets, phal, pinch)
         if q_ik is None:
             return self._hold("solver_failed", time_s)
@@ -327,23 +338,12 @@ class Retargeter:
         palm_p, palm_q = pose_mul1(wrist_world, r_w, q_w, self._p_wp, self._q_wp)
         errors = np.linalg.norm(tip_pos - targets, axis=1)
         for arr in (q_out, base_p, base_q, palm_p, palm_q, targets, tip_pos, errors, moved):
-            arr.setflags(write=False)  # results are shared by held frames: read-only
+            arr.setflags(write=False)  # shared by held frames: read-only
         self._last = RetargetResult(
             q=q_out, base_pos_m=base_p, base_quat_wxyz=base_q, palm_pos_m=palm_p,
             palm_quat_wxyz=palm_q, tip_targets_m=targets, tip_positions_m=tip_pos,
             tip_errors_m=errors, held=False, reason=None, time_s=time_s, snap_moved_m=moved)
         return self._last
-
-    def _snap(self, targets: Array, base_p: Array, base_q: Array) -> tuple[Array, Array]:
-        """Pad targets (base frame) snapped onto the object surface (:mod:`teleop.retarget.snap`)
-        and how far each moved (metres)."""
-        assert self.surface is not None
-        cfg = self.config
-        r_b = quat_to_mat1(base_q)
-        world = base_p + targets @ r_b.T
-        _, normals, signed = self.surface.query(world)
-        world, moved = snap_to_surface(world, normals, signed, cfg.snap_distance_m, self.press_m)
-        return (world - base_p) @ r_b, moved
 
     def _phalanx_targets(self, hand: HandState, p_w: Array, r_w: Array) -> Array | None:
         """Phalanx keypoint targets (base frame) of this frame; their costs are zeroed where

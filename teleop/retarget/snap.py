@@ -29,11 +29,34 @@ Points and distances in metres, in whatever frame the surface was queried in.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
-__all__ = ["snap_distances", "snap_to_surface"]
+from sim.transforms import quat_to_mat1
+from teleop.retarget.surface import ObjectSurface
+
+__all__ = ["SnappedTargets", "normal_axes", "snap_distances", "snap_pad_targets",
+           "snap_to_surface", "snap_weight"]
 
 Array = np.ndarray
+Pose = tuple[Array, Array]
+
+
+def _rise(d: Array, snap_m: float) -> Array:
+    """The Hermite rise 3u² − 2u³ of the blend band, u = (d − a) / a clipped to [0, 1]."""
+    a = 0.5 * snap_m
+    u = np.clip((d - a) / a, 0.0, 1.0)
+    return u * u * (3.0 - 2.0 * u)
+
+
+def snap_weight(signed_m: Array, snap_m: float) -> Array:
+    """How much of the object a target at signed distance ``signed_m`` follows, per point: the
+    module docstring's w (1 over the inner half and behind the surface, the Hermite blend down
+    to 0 at ``snap_m``, 0 beyond). What the press is scaled by, and what blends a snapped
+    target into the simulated hand's frame (:class:`teleop.retarget.retargeter.Retargeter`)."""
+    d = np.asarray(signed_m, dtype=float)
+    return np.where(d >= snap_m, 0.0, 1.0 - _rise(d, snap_m))
 
 
 def snap_distances(signed_m: Array, snap_m: float, press_m: Array | float = 0.0) -> Array:
@@ -42,8 +65,8 @@ def snap_distances(signed_m: Array, snap_m: float, press_m: Array | float = 0.0)
     d = np.asarray(signed_m, dtype=float)
     a = 0.5 * snap_m
     u = np.clip((d - a) / a, 0.0, 1.0)
-    rise = u * u * (3.0 - 2.0 * u)
-    blend = snap_m * rise + a * u * u * (u - 1.0) - np.asarray(press_m, float) * (1.0 - rise)
+    blend = (snap_m * _rise(d, snap_m) + a * u * u * (u - 1.0)
+             - np.asarray(press_m, float) * snap_weight(d, snap_m))
     return np.where(d >= snap_m, d, blend)
 
 
@@ -53,3 +76,53 @@ def snap_to_surface(points_m: Array, normals: Array, signed_m: Array, snap_m: fl
     ``signed_m`` (n,) to :func:`snap_distances`; also how far each moved (n,), metres."""
     moved = np.asarray(signed_m, dtype=float) - snap_distances(signed_m, snap_m, press_m)
     return points_m - moved[:, None] * normals, moved
+
+
+class SnappedTargets(NamedTuple):
+    """:func:`snap_pad_targets`' result, per target: where it goes (base frame, metres), how
+    far it moved (metres), the object's outward surface normal there (base frame) and its
+    :func:`snap_weight` (0: not near the object)."""
+
+    targets_m: Array
+    moved_m: Array
+    normals: Array
+    weight: Array
+
+
+def snap_pad_targets(surface: ObjectSurface, targets: Array, base: Pose, snap_m: float,
+                     press_m: Array | float = 0.0, sim_base: Pose | None = None,
+                     standoff_m: Array | float = 0.0) -> SnappedTargets:
+    """``targets`` (n, 3) of a hand whose base is at ``base`` (position, quaternion wxyz, in the
+    surface's world), in that base frame, snapped onto ``surface`` (:func:`snap_to_surface`).
+    ``standoff_m`` (per target or one): the snap keeps the targets that far *outside* the
+    surface instead (a phalanx keypoint is a joint centre, a link radius from the skin).
+
+    With ``sim_base`` (where the simulated hand's base actually is) each snapped target is
+    blended, by its :func:`snap_weight`, into that frame: the IK then puts the pads on the
+    object where the simulated hand is (a base that lags its command, or gives way to the
+    fingers' squeeze, no longer leaves them short of it); targets beyond ``snap_m`` keep the
+    commanded frame, so fingers away from the object keep the operator's posture.
+    """
+    r_b = quat_to_mat1(np.asarray(base[1], float))
+    world = base[0] + targets @ r_b.T
+    _, normals, signed = surface.query(world)
+    signed = signed - np.asarray(standoff_m, float)
+    world, moved = snap_to_surface(world, normals, signed, snap_m, press_m)
+    weight = snap_weight(signed, snap_m)
+    local = (world - base[0]) @ r_b
+    if sim_base is None:
+        return SnappedTargets(local, moved, normals @ r_b, weight)
+    r_s = quat_to_mat1(np.asarray(sim_base[1], float))
+    in_sim = (world - sim_base[0]) @ r_s
+    return SnappedTargets(local + weight[:, None] * (in_sim - local), moved, normals @ r_s, weight)
+
+
+def normal_axes(normals: Array) -> Array:
+    """Per unit normal (n, 3) an orthonormal frame (n, 3, 3) whose first row is the normal and
+    whose other two rows span the surface: the axes of a pad's IK error
+    (:attr:`teleop.retarget.tasks.PointsTask.axes`)."""
+    n = np.asarray(normals, float)
+    helper = np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    t1 = np.cross(n, helper)
+    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    return np.stack([n, t1, np.cross(n, t1)], axis=1)
