@@ -30,8 +30,8 @@ Targets (contact-aware)
     robot's phalanges too. Near a thumb–finger pinch the targets are pulled together and a
     distance task (:class:`teleop.retarget.tasks.PinchTask`) joins the IK. With an object
     (:meth:`Retargeter.set_object`), targets within ``snap_distance_m`` of its surface or behind
-    it go onto it, or ``press_m`` into it (the bridge's grasp assist), phalanx points a joint
-    radius outside (:mod:`teleop.retarget.snap`); a snapped pad is weighed along the surface
+    it go onto it, or ``press_m`` into it (the bridge's grasp assist,
+    :mod:`teleop.retarget.snap`); a snapped pad is weighed along the surface
     at ``snap_tangent_cost`` only, and with the simulated base pose (``sim_base``) it is solved
     in *that* frame, so pads reach the object where the simulated hand really is.
 
@@ -323,9 +323,6 @@ class Retargeter:
             pad_cost[:, 1:] *= (1.0 - snapped.weight * (1.0 - cfg.snap_tangent_cost))[:, None]
         self._points.cost[:3 * nf] = cfg.fingertip_cost * pad_cost.ravel()
         phal = self._phalanx_targets(hand, p_w, r_w)
-        if phal is not None and snapping and cfg.snap_phalanges:
-            phal = snap_pad_targets(self.surface, phal, (base_p, base_q), cfg.snap_distance_m, 0.0,
-                                    sim_frame, self.scale * hand.radii[self._phal_idx]).targets_m
         q_ik = self._solve(targets, phal, pinch)
         if q_ik is None:
             return self._hold("solver_failed", time_s)

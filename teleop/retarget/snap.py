@@ -90,12 +90,9 @@ class SnappedTargets(NamedTuple):
 
 
 def snap_pad_targets(surface: ObjectSurface, targets: Array, base: Pose, snap_m: float,
-                     press_m: Array | float = 0.0, sim_base: Pose | None = None,
-                     standoff_m: Array | float = 0.0) -> SnappedTargets:
+                     press_m: Array | float = 0.0, sim_base: Pose | None = None) -> SnappedTargets:
     """``targets`` (n, 3) of a hand whose base is at ``base`` (position, quaternion wxyz, in the
     surface's world), in that base frame, snapped onto ``surface`` (:func:`snap_to_surface`).
-    ``standoff_m`` (per target or one): the snap keeps the targets that far *outside* the
-    surface instead (a phalanx keypoint is a joint centre, a link radius from the skin).
 
     With ``sim_base`` (where the simulated hand's base actually is) each snapped target is
     blended, by its :func:`snap_weight`, into that frame: the IK then puts the pads on the
@@ -106,7 +103,6 @@ def snap_pad_targets(surface: ObjectSurface, targets: Array, base: Pose, snap_m:
     r_b = quat_to_mat1(np.asarray(base[1], float))
     world = base[0] + targets @ r_b.T
     _, normals, signed = surface.query(world)
-    signed = signed - np.asarray(standoff_m, float)
     world, moved = snap_to_surface(world, normals, signed, snap_m, press_m)
     weight = snap_weight(signed, snap_m)
     local = (world - base[0]) @ r_b
