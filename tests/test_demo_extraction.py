@@ -92,10 +92,11 @@ def marked(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def _rewrite(src: Path, dst: Path, log_time: Callable[[str, int], int],
-             event: Callable[[dict], dict] | None = None) -> Path:
+             event: Callable[[dict], dict] | None = None,
+             contacts: Callable[[dict], dict] | None = None) -> Path:
     """``src`` copied to ``dst`` (mcap's own reader and writer) with each message's log and
     publish time mapped by ``log_time(topic, t_ns)`` and, when given, each ``/events`` JSON
-    by ``event``."""
+    by ``event`` and each ``/contacts`` JSON by ``contacts``."""
     import json
 
     with open(src, "rb") as f_in, open(dst, "wb") as f_out:
@@ -116,8 +117,9 @@ def _rewrite(src: Path, dst: Path, log_time: Callable[[str, int], int],
                     channel.topic, channel.message_encoding, schema_ids[schema.id],
                     channel.metadata)
             data = msg.data
-            if event is not None and channel.topic == "/events":
-                data = json.dumps(event(json.loads(data))).encode()
+            edit = {"/events": event, "/contacts": contacts}.get(channel.topic)
+            if edit is not None:
+                data = json.dumps(edit(json.loads(data))).encode()
             t = log_time(channel.topic, msg.log_time)
             writer.add_message(channel_ids[channel.id], t, data, t, msg.sequence)
         writer.finish()
@@ -198,6 +200,35 @@ def test_b_grasp_mark_is_honoured(marked: Path, tmp_path: Path) -> None:
     late = _rewrite(marked, tmp_path / "no_seq.mcap", lambda topic, t: t + 10**9
                     if topic == "/events" else t, event=no_seq)   # log time says nothing
     assert _moments(extract_demos(late)) == _moments(demos)
+
+
+def test_mark_takes_the_fullest_state_near_it(marked: Path, tmp_path: Path) -> None:
+    """A mark names a grasp, not a physics step: with one finger's contacts dropped at the
+    marked state (a fingertip leaving the object for one step, as a resting one does), the demo
+    is the nearest state within ``mark_snap_s`` that has every finger in contact; with
+    ``mark_snap_s`` 0 it is the marked state itself, without that finger."""
+    from teleop.record.demos import DemoParams
+
+    s = open_session(marked)
+    (mark,) = [e for _, e in s.events() if e["type"] == "grasp_mark"]
+    (demo,) = extract_demos(marked)
+    assert len(demo.fingers) >= 3, demo.fingers
+    gone = next(f for f in demo.fingers if f != "thumb")
+
+    def drop(msg: dict) -> dict:
+        if msg.get("seq") == mark["payload"]["seq"] and msg.get("t_s") == mark["t_s"]:
+            msg = {**msg, "contacts": [c for c in msg["contacts"] if c["finger"] != gone]}
+        return msg
+
+    edited = _rewrite(marked, tmp_path / "flicker.mcap", lambda _topic, t: t, contacts=drop)
+    (near,) = extract_demos(edited)
+    assert near.fingers == demo.fingers and near.how == "grasp_mark"
+    assert 0.0 < abs(near.time_s - demo.time_s) <= DemoParams().mark_snap_s + 0.01
+    (exact,) = extract_demos(edited, DemoParams(mark_snap_s=0.0))
+    assert set(exact.fingers) == set(demo.fingers) - {gone}
+    (state,) = [st for _, st in s.json_messages("/state")
+                if st["seq"] == mark["payload"]["seq"] and st["t_s"] == mark["t_s"]]
+    np.testing.assert_array_equal(exact.joints, state["qpos"])
 
 
 @pytest.mark.parametrize("factor", [0.1, 0.3, 3.0])

@@ -11,9 +11,12 @@ body touches), one of each per bridge step. A *stable grasp* is a run of states 
 priority order: the thumb for the Shadow Hand) among them, lasting at least ``min_duration_s``;
 the moment inside a run is the state with the most fingertips in contact (the middle one of
 those, for ties). Contact losses shorter than ``max_gap_s`` do not split a run.
-An operator's ``grasp_mark`` event is an explicit moment: the state it names
-(``seq``) or the last one logged before it; when that state has too few fingertip contacts, the
-best state within ``mark_window_s`` is taken instead, and a mark with none is reported, not
+An operator's ``grasp_mark`` event names a moment: the state it names
+(``seq``) or the last one logged before it — or, within ``mark_snap_s`` of it, the usable state
+with the most fingertips in contact (ties: the nearest), because a person marks with a button
+or a held gesture, not to the 4 ms physics step, and a fingertip resting on the object touches
+and leaves it from step to step (README "Grasping at human speed"); with no usable state that
+near, the nearest one within ``mark_window_s`` is taken, and a mark with none is reported, not
 silently dropped. A mark within ``mark_window_s`` of a stable run replaces that run's own
 moment (one demo per grasp).
 
@@ -60,13 +63,15 @@ class DemoParams:
     """Grasp-moment detection. ``min_fingers`` fingertips (the first finger of the hand among
     them) in contact for at least ``min_duration_s`` seconds, losses shorter than
     ``max_gap_s`` bridged; a ``grasp_mark`` belongs to a contact run within ``mark_window_s``
-    seconds of it, and may look that far either side for a state with enough contacts. All
-    seconds of simulated time (module docstring)."""
+    seconds of it, and may look that far either side for a state with enough contacts; it
+    takes the state with the most fingertips within ``mark_snap_s`` of it (a person's
+    reaction time). All seconds of simulated time (module docstring)."""
 
     min_fingers: int = 2
     min_duration_s: float = 0.3
     max_gap_s: float = 0.25
     mark_window_s: float = 0.5
+    mark_snap_s: float = 0.2
 
 
 @dataclass
@@ -296,12 +301,14 @@ def _mark_states(session: Session, track: _Track, p: DemoParams, lead: str,
         if ev.get("type") != "grasp_mark":
             continue
         i = _marked_state(track, t, ev)
-        if ok[i]:
-            out.append(i)
-            continue
-        win = np.flatnonzero(ok & (np.abs(track.clock_ns - track.clock_ns[i])
-                                   <= p.mark_window_s * 1e9))
-        if len(win):
+        dt_ns = np.abs(track.clock_ns - track.clock_ns[i])
+        snap = np.flatnonzero(ok & (dt_ns <= p.mark_snap_s * 1e9))
+        win = np.flatnonzero(ok & (dt_ns <= p.mark_window_s * 1e9))
+        if len(snap):
+            n = np.array([len(track.fingers_touching[k]) for k in snap])
+            best = snap[n == n.max()]
+            out.append(int(best[np.argmin(np.abs(best - i))]))
+        elif len(win):
             out.append(int(win[np.argmin(np.abs(win - i))]))
         else:
             log.warning("%s: grasp_mark at %.2f s has no state with >= %d fingertips (%s among "
