@@ -96,7 +96,6 @@ class RetargetConfig:
     phalanx_cost: float
     snap_distance_m: float
     snap_in_sim_frame: bool
-    snap_tangent_cost: float
     input_filter: InputFilterSettings
     calibration_s: float
     hands: Mapping[str, HandMapping] = field(default_factory=dict)
@@ -113,7 +112,7 @@ _RETARGET_KEYS = {"solver", "iterations", "dt_s", "fingertip_cost", "posture_cos
                   "filter_alpha", "scale", "operator_hand_length_m", "wrist_position_scale",
                   "world_offset_m", "pinch_release_gap_m", "pinch_cost", "pad_targets",
                   "phalanx_cost", "snap_distance_m", "snap_in_sim_frame",
-                  "snap_tangent_cost", "input_min_cutoff_hz", "input_beta", "input_d_cutoff_hz",
+                  "input_min_cutoff_hz", "input_beta", "input_d_cutoff_hz",
                   "input_beta_rotation",
                   "calibration_s"}
 _HAND_KEYS = {"side", "fingers", "phalanges", "scale_finger", "wrist_pos_m", "wrist_rpy_deg"}
@@ -208,7 +207,6 @@ def load_retarget_config(path: Path | str | None = None) -> RetargetConfig:
         phalanx_cost=sec.float("phalanx_cost", 0.5, min=0.0),
         snap_distance_m=sec.float("snap_distance_m", 0.015, min=0.0, max=0.05),
         snap_in_sim_frame=sec.bool("snap_in_sim_frame", True),
-        snap_tangent_cost=sec.float("snap_tangent_cost", 1.0, min=0.0, max=1.0),
         input_filter=InputFilterSettings(
             min_cutoff_hz=sec.float("input_min_cutoff_hz", d_in.min_cutoff_hz, min=0.0, max=100.0),
             beta=sec.float("input_beta", d_in.beta, min=0.0),

@@ -31,9 +31,8 @@ Targets (contact-aware)
     distance task (:class:`teleop.retarget.tasks.PinchTask`) joins the IK. With an object
     (:meth:`Retargeter.set_object`), targets within ``snap_distance_m`` of its surface or behind
     it go onto it, or ``press_m`` into it (the bridge's grasp assist,
-    :mod:`teleop.retarget.snap`); a snapped pad is weighed along the surface
-    at ``snap_tangent_cost`` only, and with the simulated base pose (``sim_base``) it is solved
-    in *that* frame, so pads reach the object where the simulated hand really is.
+    :mod:`teleop.retarget.snap`); with the simulated base pose (``sim_base``) a snapped pad is
+    solved in *that* frame, so the pads reach the object where the simulated hand really is.
 
 Scale calibration (:mod:`teleop.retarget.calibration`)
     scale = robot length / operator length × ``scale``, the operator measured from frames at
@@ -74,7 +73,7 @@ from teleop.retarget.input_filter import HandInputFilter
 from teleop.retarget.joint_filter import JointFilter
 from teleop.retarget.operator_points import pad_points, pinch_adjust
 from teleop.retarget.result import HOLD_REASONS, RetargetResult
-from teleop.retarget.snap import normal_axes, snap_pad_targets
+from teleop.retarget.snap import snap_pad_targets
 from teleop.retarget.surface import ObjectSurface
 from teleop.retarget.tasks import CouplingConstraint, PinchTask, PointsTask
 
@@ -312,16 +311,11 @@ class Retargeter:
         targets = self._p_bw + rel @ self._m_wb       # base frame, scaled about the wrist
         wrist_world = self.config.world_offset_m + self.config.wrist_position_scale * p_w
         base_p, base_q = pose_mul1(wrist_world, r_w, q_w, self._p_wb, self._q_wb)
-        cfg, nf, moved = self.config, len(targets), np.zeros(len(targets))
-        snapping = self.surface is not None and cfg.snap_distance_m > 0.0
-        sim_frame, pad_cost = sim_base if cfg.snap_in_sim_frame else None, np.full((nf, 3), 1.0)
-        if snapping:
-            snapped = snap_pad_targets(self.surface, targets, (base_p, base_q),
-                                       cfg.snap_distance_m, self.press_m, sim_frame)
-            targets, moved = snapped.targets_m, snapped.moved_m
-            self._points.axes[:nf] = normal_axes(snapped.normals)
-            pad_cost[:, 1:] *= (1.0 - snapped.weight * (1.0 - cfg.snap_tangent_cost))[:, None]
-        self._points.cost[:3 * nf] = cfg.fingertip_cost * pad_cost.ravel()
+        cfg, moved = self.config, np.zeros(len(targets))
+        if self.surface is not None and cfg.snap_distance_m > 0.0:
+            targets, moved = snap_pad_targets(
+                self.surface, targets, (base_p, base_q), cfg.snap_distance_m, self.press_m,
+                sim_base if cfg.snap_in_sim_frame else None)
         phal = self._phalanx_targets(hand, p_w, r_w)
         q_ik = self._solve(targets, phal, pinch)
         if q_ik is None:

@@ -29,15 +29,12 @@ Points and distances in metres, in whatever frame the surface was queried in.
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import numpy as np
 
 from sim.transforms import quat_to_mat1
 from teleop.retarget.surface import ObjectSurface
 
-__all__ = ["SnappedTargets", "normal_axes", "snap_distances", "snap_pad_targets",
-           "snap_to_surface", "snap_weight"]
+__all__ = ["snap_distances", "snap_pad_targets", "snap_to_surface", "snap_weight"]
 
 Array = np.ndarray
 Pose = tuple[Array, Array]
@@ -78,21 +75,12 @@ def snap_to_surface(points_m: Array, normals: Array, signed_m: Array, snap_m: fl
     return points_m - moved[:, None] * normals, moved
 
 
-class SnappedTargets(NamedTuple):
-    """:func:`snap_pad_targets`' result, per target: where it goes (base frame, metres), how
-    far it moved (metres), the object's outward surface normal there (base frame) and its
-    :func:`snap_weight` (0: not near the object)."""
-
-    targets_m: Array
-    moved_m: Array
-    normals: Array
-    weight: Array
-
-
 def snap_pad_targets(surface: ObjectSurface, targets: Array, base: Pose, snap_m: float,
-                     press_m: Array | float = 0.0, sim_base: Pose | None = None) -> SnappedTargets:
+                     press_m: Array | float = 0.0, sim_base: Pose | None = None
+                     ) -> tuple[Array, Array]:
     """``targets`` (n, 3) of a hand whose base is at ``base`` (position, quaternion wxyz, in the
-    surface's world), in that base frame, snapped onto ``surface`` (:func:`snap_to_surface`).
+    surface's world), in that base frame, snapped onto ``surface`` (:func:`snap_to_surface`),
+    and how far each moved (metres).
 
     With ``sim_base`` (where the simulated hand's base actually is) each snapped target is
     blended, by its :func:`snap_weight`, into that frame: the IK then puts the pads on the
@@ -104,21 +92,8 @@ def snap_pad_targets(surface: ObjectSurface, targets: Array, base: Pose, snap_m:
     world = base[0] + targets @ r_b.T
     _, normals, signed = surface.query(world)
     world, moved = snap_to_surface(world, normals, signed, snap_m, press_m)
-    weight = snap_weight(signed, snap_m)
     local = (world - base[0]) @ r_b
     if sim_base is None:
-        return SnappedTargets(local, moved, normals @ r_b, weight)
-    r_s = quat_to_mat1(np.asarray(sim_base[1], float))
-    in_sim = (world - sim_base[0]) @ r_s
-    return SnappedTargets(local + weight[:, None] * (in_sim - local), moved, normals @ r_s, weight)
-
-
-def normal_axes(normals: Array) -> Array:
-    """Per unit normal (n, 3) an orthonormal frame (n, 3, 3) whose first row is the normal and
-    whose other two rows span the surface: the axes of a pad's IK error
-    (:attr:`teleop.retarget.tasks.PointsTask.axes`)."""
-    n = np.asarray(normals, float)
-    helper = np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
-    t1 = np.cross(n, helper)
-    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
-    return np.stack([n, t1, np.cross(n, t1)], axis=1)
+        return local, moved
+    in_sim = (world - sim_base[0]) @ quat_to_mat1(np.asarray(sim_base[1], float))
+    return local + snap_weight(signed, snap_m)[:, None] * (in_sim - local), moved

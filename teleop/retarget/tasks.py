@@ -118,10 +118,7 @@ class PointsTask(mink.Task):
 
     sites / bodies: MuJoCo ids, the sites first in the rows; costs: one per point (sites, then
     bodies). :attr:`target_m` ((n, 3), metres, the model's world = the hand base frame) is
-    written in place before each solve. :attr:`axes` ((n, 3, 3), identity by default): each
-    point's error is expressed along the rows of its axes, so the three cost rows of a point
-    can weigh directions differently (a pad on an object: along the surface normal in full,
-    along the surface less, :class:`teleop.retarget.retargeter.Retargeter`).
+    written in place before each solve.
     """
 
     def __init__(self, model: mujoco.MjModel, sites: Sequence[int], bodies: Sequence[int],
@@ -135,7 +132,6 @@ class PointsTask(mink.Task):
         self._sites = np.asarray(sites, dtype=int)
         self._bodies = np.asarray(bodies, dtype=int)
         self.target_m = np.zeros((n, 3))
-        self.axes = np.tile(np.eye(3), (n, 1, 1))
         self._jac = np.zeros((3 * n, model.nv))
 
     def positions(self, data: mujoco.MjData) -> Array:
@@ -143,8 +139,7 @@ class PointsTask(mink.Task):
         return np.concatenate([data.site_xpos[self._sites], data.xpos[self._bodies]])
 
     def compute_error(self, configuration: mink.Configuration) -> Array:
-        diff = self.positions(configuration.data) - self.target_m
-        return np.einsum("nij,nj->ni", self.axes, diff).ravel()
+        return (self.positions(configuration.data) - self.target_m).ravel()
 
     def compute_jacobian(self, configuration: mink.Configuration) -> Array:
         m, d = self._model, configuration.data
@@ -154,5 +149,4 @@ class PointsTask(mink.Task):
             mujoco.mj_jacSite(m, d, jac[3 * k:3 * k + 3], None, int(sid))
         for k, bid in enumerate(self._bodies, start=ns):
             mujoco.mj_jacBody(m, d, jac[3 * k:3 * k + 3], None, int(bid))
-        rows = jac.reshape(len(self.axes), 3, -1)
-        return np.einsum("nij,njv->niv", self.axes, rows).reshape(jac.shape)
+        return jac
