@@ -13,7 +13,10 @@ twice — in demonstration mode (object held) and in free mode — and measured:
   of the human's fingers and the object (``mj_geomDistance``; the issue's "simulated pads to the
   object surface");
 - **lifted**: in free mode the object's median height over the hold phase is ≥ 60 % of the
-  operator's lift height above where it rested.
+  operator's lift height above where it rested;
+- **demo holds** (``--validate-demos``): the demo's own grasp passes the validator's lift-drop
+  (real mass, :func:`dexaug.pipeline.run.validate_demo_grasp`), and how many of those episodes
+  lifted: a grasp that does not hold in the validator cannot be lifted by steadier teleop.
 
 Speeds: ``natural`` closes in 0.3 s and lifts 0.15 s later (a person: first contact → lift
 ≈ 0.35 s), ``slow`` in 0.8 s and 0.8 s (the synthetic operator's default). Objects are the
@@ -23,6 +26,7 @@ the bridge's servo gains and at the model's own (DESIGN §6 "fingers at human sp
 
     .venv/bin/python benchmarks/bench_teleop_loop.py [--seeds 2] [--speed natural|slow]
                                                       [--objects a,b,...] [--workers 2]
+                                                      [--validate-demos]
 """
 
 from __future__ import annotations
@@ -114,8 +118,8 @@ def _hold_height_m(path: Path, ep) -> float:
     return float(np.median(z[hold]) - np.median(z[t < ep.phases["approach"][0]]))
 
 
-def run_one(job: tuple[str, str, int, str, str]) -> dict:
-    hand_name, obj, seed, speed, out = job
+def run_one(job: tuple[str, str, int, str, str, bool]) -> dict:
+    hand_name, obj, seed, speed, out, validate_demo = job
     os.environ.setdefault("MUJOCO_GL", "egl")
     from sim.demo import DemoError
     from sim.hand.model import Hand
@@ -151,7 +155,12 @@ def run_one(job: tuple[str, str, int, str, str]) -> dict:
         demos = extract_demos(demo_path)
     except DemoError as exc:
         demos, row["why"] = [], str(exc).split(": ", 2)[-1][:90]
-    row["fingers"] = sorted(max(demos, key=lambda x: len(x.fingers)).fingers) if demos else []
+    best = max(demos, key=lambda x: len(x.fingers)) if demos else None
+    row["fingers"] = sorted(best.fingers) if best else []
+    if validate_demo and best is not None:
+        from dexaug.pipeline.run import validate_demo_grasp
+
+        row["demo_holds"] = bool(validate_demo_grasp(hand_name, obj, best, "lift-drop")["passed"])
     row["demo"] = bool(demos)
     row["human_fingers"] = bool(demos) and set(row["human"]) <= set(row["fingers"])
     row["hold_height_m"] = _hold_height_m(rerecord(raw, d / "free.mcap", object_mode="free"), ep)
@@ -200,6 +209,8 @@ def main() -> None:
     ap.add_argument("--objects", default=",".join(OBJECTS))
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--hand", default=None, help="hand (default: configs/hands/default.toml)")
+    ap.add_argument("--validate-demos", action="store_true",
+                    help="also check each demo's grasp with the validator's lift-drop")
     args = ap.parse_args()
     from sim.hand.config import default_hand_name
     from teleop.bridge.config import load_bridge_config
@@ -212,7 +223,8 @@ def main() -> None:
     objects = args.objects.split(",")
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
-        jobs = [(hand, o, s, args.speed, tmp) for o in objects for s in range(args.seeds)]
+        jobs = [(hand, o, s, args.speed, tmp, args.validate_demos) for o in objects
+                for s in range(args.seeds)]
         with ProcessPoolExecutor(args.workers) as ex:
             rows = list(ex.map(run_one, jobs))
     wall = time.perf_counter() - t0
@@ -238,6 +250,11 @@ def main() -> None:
           f"fingers {share['human_fingers']}/{n} ({100 * share['human_fingers'] / max(n, 1):.0f} "
           f"%), lifted in free mode {share['lifted']}/{n} "
           f"({100 * share['lifted'] / max(n, 1):.0f} %)")
+    if args.validate_demos:
+        holds = [r for r in ok if r.get("demo_holds")]
+        print(f"demo grasps that hold in the validator (lift-drop, real mass): {len(holds)}/"
+              f"{share['demo']}; lifted in free mode among those episodes: "
+              f"{sum(bool(r['lifted']) for r in holds)}/{len(holds)}")
 
 
 if __name__ == "__main__":
