@@ -73,6 +73,17 @@ def _human_fingers(ep, obj: str, hand) -> list[str]:
     return sorted(n for n, g in zip(names, gap, strict=True) if g < HUMAN_TOUCH_M)
 
 
+def _states_on_operator_clock(path: Path, ep) -> tuple[list[dict], np.ndarray]:
+    """The recording's ``/state`` messages and each one's operator device time (seconds): each
+    state names the frame (seq) it answers; simulated time runs at steps_per_frame × timestep
+    per frame, not the frames' pace."""
+    from teleop.record.session import open_session
+
+    states = [m for _, m in open_session(path).json_messages("/state")]
+    device_s = {f.seq: f.device_time_s for f in ep.frames}
+    return states, np.array([device_s.get(m["seq"], np.nan) for m in states])
+
+
 def _pad_gaps_m(path: Path, ep, obj: str, hand, fingers: list[str]) -> list[float]:
     """For each finger in ``fingers``: the gap (metres, negative: pressed in) between its
     distal link's collision geoms and the object in the simulated state nearest the human's
@@ -81,11 +92,8 @@ def _pad_gaps_m(path: Path, ep, obj: str, hand, fingers: list[str]) -> list[floa
 
     from sim.world.objects import load_object
     from sim.world.scene import HAND_PREFIX, Scene
-    from teleop.record.session import open_session
 
-    states = [m for _, m in open_session(path).json_messages("/state")]
-    device_s = {f.seq: f.device_time_s for f in ep.frames}
-    t = np.array([device_s.get(m["seq"], np.nan) for m in states])
+    states, t = _states_on_operator_clock(path, ep)
     m_state = states[int(np.nanargmin(np.abs(t - ep.grasp_time_s)))]
     sc = Scene(hand, load_object(obj))
     q = np.asarray(m_state["qpos"], float)
@@ -94,25 +102,19 @@ def _pad_gaps_m(path: Path, ep, obj: str, hand, fingers: list[str]) -> list[floa
     sc.set_object_pose(np.asarray(m_state["object_pos_m"]), np.asarray(m_state["object_quat_wxyz"]))
     model, data = sc.model, sc.data
     mujoco.mj_forward(model, data)
-    obj_geoms = np.flatnonzero(sc.obj_geom_mask & (model.geom_contype | model.geom_conaffinity > 0))
+    collides = (model.geom_contype | model.geom_conaffinity) > 0
+    obj_geoms = np.flatnonzero(sc.obj_geom_mask & collides)
     gaps = []
     for f in fingers:
         body = model.body(HAND_PREFIX + hand.config.finger(f).links[-1]).id
-        geoms = [g for g in np.flatnonzero(model.geom_bodyid == body)
-                 if model.geom_contype[g] or model.geom_conaffinity[g]]
+        geoms = np.flatnonzero((model.geom_bodyid == body) & collides)
         gaps.append(min(mujoco.mj_geomDistance(model, data, int(a), int(b), 0.05, None)
                         for a in geoms for b in obj_geoms))
     return gaps
 
 
 def _hold_height_m(path: Path, ep) -> float:
-    from teleop.record.session import open_session
-
-    states = [m for _, m in open_session(path).json_messages("/state")]
-    # the operator's clock: each state names the frame (seq) it answers; simulated time runs
-    # at steps_per_frame × timestep per frame, not the frames' pace
-    device_s = {f.seq: f.device_time_s for f in ep.frames}
-    t = np.array([device_s.get(m["seq"], np.nan) for m in states])
+    states, t = _states_on_operator_clock(path, ep)
     z = np.array([m["object_pos_m"][2] for m in states])
     hold = (t >= ep.phases["hold"][0]) & (t <= ep.phases["hold"][1])
     return float(np.median(z[hold]) - np.median(z[t < ep.phases["approach"][0]]))

@@ -111,10 +111,8 @@ _RETARGET_KEYS = {"solver", "iterations", "dt_s", "fingertip_cost", "posture_cos
                   "task_lm_damping", "damping", "limit_gain", "filter_time_constant_s",
                   "filter_alpha", "scale", "operator_hand_length_m", "wrist_position_scale",
                   "world_offset_m", "pinch_release_gap_m", "pinch_cost", "pad_targets",
-                  "phalanx_cost", "snap_distance_m", "snap_in_sim_frame",
-                  "input_min_cutoff_hz", "input_beta", "input_d_cutoff_hz",
-                  "input_beta_rotation",
-                  "calibration_s"}
+                  "phalanx_cost", "snap_distance_m", "snap_in_sim_frame", "calibration_s",
+                  "input_min_cutoff_hz", "input_beta", "input_d_cutoff_hz", "input_beta_rotation"}
 _HAND_KEYS = {"side", "fingers", "phalanges", "scale_finger", "wrist_pos_m", "wrist_rpy_deg"}
 
 

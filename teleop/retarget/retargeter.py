@@ -48,7 +48,9 @@ Solver settings
 
 Missing data
     No hand, an untracked hand, invalid wrist/fingertip joints or a failed QP solve hold the last
-    output (``held=True``, reason counted in :attr:`Retargeter.held_counts`). Nothing raises.
+    output (``held=True``, reason counted in :attr:`Retargeter.held_counts`); an invalid phalanx
+    joint only drops its task. Nothing raises.
+
 Quaternions are wxyz everywhere here; positions metres; joint values radians.
 """
 
@@ -73,7 +75,7 @@ from teleop.retarget.input_filter import HandInputFilter
 from teleop.retarget.joint_filter import JointFilter
 from teleop.retarget.operator_points import pad_points, pinch_adjust
 from teleop.retarget.result import HOLD_REASONS, RetargetResult
-from teleop.retarget.snap import snap_pad_targets
+from teleop.retarget.snap import Pose, snap_pad_targets
 from teleop.retarget.surface import ObjectSurface
 from teleop.retarget.tasks import CouplingConstraint, PinchTask, PointsTask
 
@@ -82,7 +84,6 @@ __all__ = ["RetargetError", "Retargeter"]
 logger = logging.getLogger(__name__)
 
 Array = np.ndarray
-Pose = tuple[Array, Array]
 
 
 class RetargetError(DexaugError):

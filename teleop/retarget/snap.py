@@ -34,36 +34,37 @@ import numpy as np
 from sim.transforms import quat_to_mat1
 from teleop.retarget.surface import ObjectSurface
 
-__all__ = ["snap_distances", "snap_pad_targets", "snap_to_surface", "snap_weight"]
+__all__ = ["Pose", "snap_distances", "snap_pad_targets", "snap_to_surface", "snap_weight"]
 
 Array = np.ndarray
+#: A rigid pose: position (3,) metres and quaternion (4,) wxyz.
 Pose = tuple[Array, Array]
 
 
-def _rise(d: Array, snap_m: float) -> Array:
-    """The Hermite rise 3u² − 2u³ of the blend band, u = (d − a) / a clipped to [0, 1]."""
+def _band(d: Array, snap_m: float) -> tuple[Array, Array]:
+    """Where ``d`` lies in the blend band, u = (d − a) / a clipped to [0, 1], and the Hermite
+    rise 3u² − 2u³ there."""
     a = 0.5 * snap_m
     u = np.clip((d - a) / a, 0.0, 1.0)
-    return u * u * (3.0 - 2.0 * u)
+    return u, u * u * (3.0 - 2.0 * u)
 
 
 def snap_weight(signed_m: Array, snap_m: float) -> Array:
     """How much of the object a target at signed distance ``signed_m`` follows, per point: the
     module docstring's w (1 over the inner half and behind the surface, the Hermite blend down
     to 0 at ``snap_m``, 0 beyond). What the press is scaled by, and what blends a snapped
-    target into the simulated hand's frame (:class:`teleop.retarget.retargeter.Retargeter`)."""
+    target into the simulated hand's frame (:func:`snap_pad_targets`)."""
     d = np.asarray(signed_m, dtype=float)
-    return np.where(d >= snap_m, 0.0, 1.0 - _rise(d, snap_m))
+    return np.where(d >= snap_m, 0.0, 1.0 - _band(d, snap_m)[1])
 
 
 def snap_distances(signed_m: Array, snap_m: float, press_m: Array | float = 0.0) -> Array:
     """Signed distance after snapping (the module docstring's f, or f_p with a press
     ``press_m``, per point or one for all), per point (metres)."""
     d = np.asarray(signed_m, dtype=float)
-    a = 0.5 * snap_m
-    u = np.clip((d - a) / a, 0.0, 1.0)
-    blend = (snap_m * _rise(d, snap_m) + a * u * u * (u - 1.0)
-             - np.asarray(press_m, float) * snap_weight(d, snap_m))
+    u, rise = _band(d, snap_m)
+    blend = (snap_m * rise + 0.5 * snap_m * u * u * (u - 1.0)
+             - np.asarray(press_m, float) * (1.0 - rise))
     return np.where(d >= snap_m, d, blend)
 
 
