@@ -59,6 +59,8 @@ def warp_row(v: Validator, grasps: list[Grasp], protocol: str, device: str, nwor
     t0 = time.perf_counter()
     validate_batched(runner, grasps[:min(nworld, 8)], start)
     warmup_s = time.perf_counter() - t0
+    print(f"Warp, {nworld} worlds: warm-up (kernels loaded, graph captured) {warmup_s:.1f} s",
+          flush=True)
     runner.world_steps, runner.device_s = 0, 0.0
     t0 = time.perf_counter()
     out = validate_batched(runner, grasps, start)
@@ -88,17 +90,17 @@ def main() -> None:
     hand = default_hand_name()
     v = Validator(Hand.load(hand), load_object(args.object))
     ref, c_rate = c_reference(v, hand, args.object, grasps, args.protocol, args.workers)
-    warp, row = warp_row(v, grasps, args.protocol, args.device, len(grasps))
-    same = sum(a.passed == b.passed for a, b in zip(ref, warp, strict=True))
-    same_reason = sum(a.failure == b.failure for a, b in zip(ref, warp, strict=True))
-    pairs = Counter(f"{a.failure} -> {b.failure}" for a, b in zip(ref, warp, strict=True)
-                    if a.failure != b.failure)
     n = len(grasps)
     print(f"{args.object}, {args.protocol}, {n} grasps, Warp on {args.device}")
     print("| engine | grasps | passed | validations/s | verdicts = C | failure reason = C |")
     print("| --- | --- | --- | --- | --- | --- |")
     print(f"| MuJoCo C ({args.workers} process{'es' if args.workers > 1 else ''}) | {n} | "
-          f"{sum(r.passed for r in ref)} | {c_rate:.1f} | | |")
+          f"{sum(r.passed for r in ref)} | {c_rate:.1f} | | |", flush=True)
+    warp, row = warp_row(v, grasps, args.protocol, args.device, len(grasps))
+    same = sum(a.passed == b.passed for a, b in zip(ref, warp, strict=True))
+    same_reason = sum(a.failure == b.failure for a, b in zip(ref, warp, strict=True))
+    pairs = Counter(f"{a.failure} -> {b.failure}" for a, b in zip(ref, warp, strict=True)
+                    if a.failure != b.failure)
     print(f"| MuJoCo Warp ({args.device}, {n} worlds) | {n} | {sum(r.passed for r in warp)} | "
           f"{row['validations_per_s']:.1f} | {same}/{n} ({100 * same / n:.1f} %) | "
           f"{same_reason}/{n} |")

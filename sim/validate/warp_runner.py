@@ -161,6 +161,14 @@ class WarpRunner(ProgramRunner):
                                               int(sc.obj_dadr), wd.qpos, wd.qvel])
         wp.launch(count, dim=1, inputs=[self._k])
 
+    def load_kernels(self) -> None:
+        """Load every kernel module a step launches (compiling those not in Warp's kernel
+        cache), by one eager step of every world; the next call uploads all states again."""
+        with self.wp.ScopedDevice(self.device):
+            self._upload()
+            self._one_step()
+            self.wp.synchronize()
+
     def _stepper(self) -> Callable[[], None]:
         """One step of every world: a replayed graph (Warp captures on CUDA and on the CPU),
         captured on the first call after one step run eagerly, which loads the kernels; the
@@ -169,8 +177,7 @@ class WarpRunner(ProgramRunner):
             self._graph = False
             if self.capture:
                 wp = self.wp
-                self._one_step()
-                wp.synchronize()
+                self.load_kernels()
                 self._upload()          # the eager step is undone: every world starts again
                 try:
                     with wp.ScopedCapture(force_module_load=False) as capture:
