@@ -14,6 +14,9 @@ twice — in demonstration mode (object held) and in free mode — and measured:
   object surface");
 - **lifted**: in free mode the object's median height over the hold phase is ≥ 60 % of the
   operator's lift height above where it rested;
+- **pushed** (free mode): how far the object had moved when the operator began to close, and
+  which hand body touched it first before that: the robot's links reaching the object where
+  the operator's fingers did not (counted above 5 mm);
 - **demo holds** (``--validate-demos``): the demo's own grasp passes the validator's lift-drop
   (real mass, :func:`dexaug.pipeline.run.validate_demo_grasp`), and how many of those episodes
   lifted: a grasp that does not hold in the validator cannot be lifted by steadier teleop.
@@ -50,6 +53,7 @@ OBJECTS = ("006_mustard_bottle", "013_apple", "007_tuna_fish_can", "008_pudding_
            "002_master_chef_can")
 SPEEDS = {"natural": (0.3, 0.15), "slow": (0.8, 0.8)}
 HUMAN_TOUCH_M = 0.008
+PUSHED_M = 0.005
 
 
 def _human_fingers(ep, obj: str, hand) -> list[str]:
@@ -113,6 +117,25 @@ def _pad_gaps_m(path: Path, ep, obj: str, hand, fingers: list[str]) -> list[floa
     return gaps
 
 
+def _approach_push(path: Path, ep) -> tuple[float, str]:
+    """How far (metres) the object had moved when the operator's closure began, from where it
+    rested when the approach began, and the hand body that touched it first ("" if none did
+    before the closure; of several in the same step, the first by name): the robot's links
+    reaching what the operator's fingers did not."""
+    from teleop.record.session import open_session
+
+    states, t = _states_on_operator_clock(path, ep)
+    p = np.array([m["object_pos_m"] for m in states])
+    start = int(np.nanargmin(np.abs(t - ep.phases["approach"][0])))
+    close = int(np.nanargmin(np.abs(t - ep.phases["close"][0])))
+    first = ""
+    for (_, c), ti in zip(open_session(path).json_messages("/contacts"), t, strict=False):
+        if c["contacts"] and ti < ep.phases["close"][0]:
+            first = min(x["hand_body"] for x in c["contacts"])
+            break
+    return float(np.linalg.norm(p[close] - p[start])), first
+
+
 def _hold_height_m(path: Path, ep) -> float:
     states, t = _states_on_operator_clock(path, ep)
     z = np.array([m["object_pos_m"][2] for m in states])
@@ -165,7 +188,9 @@ def run_one(job: tuple[str, str, int, str, str, bool]) -> dict:
         row["demo_holds"] = bool(validate_demo_grasp(hand_name, obj, best, "lift-drop")["passed"])
     row["demo"] = bool(demos)
     row["human_fingers"] = bool(demos) and set(row["human"]) <= set(row["fingers"])
-    row["hold_height_m"] = _hold_height_m(rerecord(raw, d / "free.mcap", object_mode="free"), ep)
+    free = rerecord(raw, d / "free.mcap", object_mode="free")
+    row["hold_height_m"] = _hold_height_m(free, ep)
+    row["push_m"], row["first_touch"] = _approach_push(free, ep)
     row["lifted"] = row["hold_height_m"] >= 0.6 * cfg.lift_height_m
     return row
 
@@ -230,7 +255,8 @@ def main() -> None:
         with ProcessPoolExecutor(args.workers) as ex:
             rows = list(ex.map(run_one, jobs))
     wall = time.perf_counter() - t0
-    print(f"\n{'object':22s} seed  demo  human fingers → robot fingers{'':14s} hold height")
+    print(f"\n{'object':22s} seed  demo  human fingers → robot fingers{'':14s} hold height  "
+          "pushed before closure (first touch)")
     for r in rows:
         if "skipped" in r:
             print(f"{r['object']:22s} {r['seed']:4d}  skipped: {r['skipped']}")
@@ -238,7 +264,8 @@ def main() -> None:
         fingers = f"{','.join(r['human'])} → {','.join(r['fingers']) or r.get('why', '-')}"
         print(f"{r['object']:22s} {r['seed']:4d}  {'yes' if r['demo'] else 'no ':4s}  "
               f"{fingers[:44]:44s} {r['hold_height_m'] * 1e3:6.0f} mm "
-              f"{'lifted' if r['lifted'] else ''}")
+              f"{'lifted' if r['lifted'] else '      '} {r['push_m'] * 1e3:5.1f} mm "
+              f"{'(' + r['first_touch'] + ')' if r['first_touch'] else ''}")
     ok = [r for r in rows if "skipped" not in r]
     n = len(ok)
     share = {k: sum(bool(r[k]) for r in ok) for k in ("demo", "human_fingers", "lifted")}
@@ -252,6 +279,9 @@ def main() -> None:
           f"fingers {share['human_fingers']}/{n} ({100 * share['human_fingers'] / max(n, 1):.0f} "
           f"%), lifted in free mode {share['lifted']}/{n} "
           f"({100 * share['lifted'] / max(n, 1):.0f} %)")
+    pushed = [r for r in ok if r["push_m"] > PUSHED_M]
+    print(f"pushed more than {PUSHED_M * 1e3:.0f} mm before the closure began (free mode): "
+          f"{len(pushed)}/{n}; lifted among those: {sum(bool(r['lifted']) for r in pushed)}")
     if args.validate_demos:
         holds = [r for r in ok if r.get("demo_holds")]
         print(f"demo grasps that hold in the validator (lift-drop, real mass): {len(holds)}/"
