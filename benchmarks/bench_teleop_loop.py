@@ -77,15 +77,16 @@ def _human_fingers(ep, obj: str, hand) -> list[str]:
     return sorted(n for n, g in zip(names, gap, strict=True) if g < HUMAN_TOUCH_M)
 
 
-def _states_on_operator_clock(path: Path, ep) -> tuple[list[dict], np.ndarray]:
-    """The recording's ``/state`` messages and each one's operator device time (seconds): each
-    state names the frame (seq) it answers; simulated time runs at steps_per_frame × timestep
-    per frame, not the frames' pace."""
+def _states_on_operator_clock(path: Path, ep, topic: str = "/state"
+                              ) -> tuple[list[dict], np.ndarray]:
+    """The recording's ``topic`` messages (``/state`` or ``/contacts``) and each one's operator
+    device time (seconds): each names the frame (seq) it answers; simulated time runs at
+    steps_per_frame × timestep per frame, not the frames' pace."""
     from teleop.record.session import open_session
 
-    states = [m for _, m in open_session(path).json_messages("/state")]
+    msgs = [m for _, m in open_session(path).json_messages(topic)]
     device_s = {f.seq: f.device_time_s for f in ep.frames}
-    return states, np.array([device_s.get(m["seq"], np.nan) for m in states])
+    return msgs, np.array([device_s.get(m["seq"], np.nan) for m in msgs])
 
 
 def _pad_gaps_m(path: Path, ep, obj: str, hand, fingers: list[str]) -> list[float]:
@@ -117,27 +118,23 @@ def _pad_gaps_m(path: Path, ep, obj: str, hand, fingers: list[str]) -> list[floa
     return gaps
 
 
-def _approach_push(path: Path, ep) -> tuple[float, str]:
+def _approach_push(path: Path, ep, states: list[dict], t: np.ndarray) -> tuple[float, str]:
     """How far (metres) the object had moved when the operator's closure began, from where it
     rested when the approach began, and the hand body that touched it first ("" if none did
     before the closure; of several in the same step, the first by name): the robot's links
-    reaching what the operator's fingers did not."""
-    from teleop.record.session import open_session
-
-    states, t = _states_on_operator_clock(path, ep)
+    reaching what the operator's fingers did not. ``states``, ``t``: the recording's
+    :func:`_states_on_operator_clock`."""
     p = np.array([m["object_pos_m"] for m in states])
     start = int(np.nanargmin(np.abs(t - ep.phases["approach"][0])))
     close = int(np.nanargmin(np.abs(t - ep.phases["close"][0])))
-    first = ""
-    for (_, c), ti in zip(open_session(path).json_messages("/contacts"), t, strict=False):
-        if c["contacts"] and ti < ep.phases["close"][0]:
-            first = min(x["hand_body"] for x in c["contacts"])
-            break
+    contacts, tc = _states_on_operator_clock(path, ep, "/contacts")
+    first = next((min(x["hand_body"] for x in c["contacts"])
+                  for c, ti in zip(contacts, tc, strict=True)
+                  if c["contacts"] and ti < ep.phases["close"][0]), "")
     return float(np.linalg.norm(p[close] - p[start])), first
 
 
-def _hold_height_m(path: Path, ep) -> float:
-    states, t = _states_on_operator_clock(path, ep)
+def _hold_height_m(ep, states: list[dict], t: np.ndarray) -> float:
     z = np.array([m["object_pos_m"][2] for m in states])
     hold = (t >= ep.phases["hold"][0]) & (t <= ep.phases["hold"][1])
     return float(np.median(z[hold]) - np.median(z[t < ep.phases["approach"][0]]))
@@ -189,8 +186,9 @@ def run_one(job: tuple[str, str, int, str, str, bool]) -> dict:
     row["demo"] = bool(demos)
     row["human_fingers"] = bool(demos) and set(row["human"]) <= set(row["fingers"])
     free = rerecord(raw, d / "free.mcap", object_mode="free")
-    row["hold_height_m"] = _hold_height_m(free, ep)
-    row["push_m"], row["first_touch"] = _approach_push(free, ep)
+    states, t = _states_on_operator_clock(free, ep)
+    row["hold_height_m"] = _hold_height_m(ep, states, t)
+    row["push_m"], row["first_touch"] = _approach_push(free, ep, states, t)
     row["lifted"] = row["hold_height_m"] >= 0.6 * cfg.lift_height_m
     return row
 

@@ -96,11 +96,13 @@ class WarpRunner(ProgramRunner):
                                     njmax=CONSTRAINTS_PER_WORLD)
             # one array for the run: a captured graph holds its address
             self.wm.opt.gravity = wp.zeros(nsim, dtype=wp.vec3)
-            self._dev = {name: wp.zeros(arr.shape, dtype=wp.int32 if arr.dtype == np.int32
-                                        else wp.float32)
-                         for name, arr in (("nramp", self._nramp), ("c0", self._c0),
-                                           ("c1", self._c1), ("pinned", self._pinned),
-                                           ("pose", self._pose))}
+            #: host rows the step kernels read → their device copies
+            self._rows = {name: (arr, wp.zeros(arr.shape, dtype=wp.int32 if arr.dtype == np.int32
+                                               else wp.float32))
+                          for name, arr in (("nramp", self._nramp), ("c0", self._c0),
+                                            ("c1", self._c1), ("pinned", self._pinned),
+                                            ("pose", self._pose))}
+            self._dev = {name: dev for name, (_, dev) in self._rows.items()}
             self._k = wp.zeros(1, dtype=wp.int32)
             self._act = wp.array(np.asarray(scene.hand_act, np.int32), dtype=wp.int32)
         self._graph: Any = None
@@ -143,9 +145,8 @@ class WarpRunner(ProgramRunner):
             rows = np.stack([getattr(s.view.data, name) for s in self.slots])
             getattr(self.wd, name).assign(rows)
         self.wm.opt.gravity.assign(self._gravity.astype(np.float32))
-        for name, arr in (("nramp", self._nramp), ("c0", self._c0), ("c1", self._c1),
-                          ("pinned", self._pinned), ("pose", self._pose)):
-            self._dev[name].assign(arr)
+        for arr, dev in self._rows.values():
+            dev.assign(arr)
         self._k.zero_()
 
     def _one_step(self) -> None:
