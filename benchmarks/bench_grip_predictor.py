@@ -38,7 +38,7 @@ from sim.hand.model import Hand
 from sim.metrics.holding import finger_contacts
 from sim.validate.config import GRAVITY_MPS2, ValidateConfig
 from sim.validate.loads import hold_loads
-from sim.validate.targets import squeeze_total_n
+from sim.validate.targets import squeeze_total_n, weight_loads
 from sim.validate.validator import Validator
 from sim.world.objects import load_object
 
@@ -55,7 +55,7 @@ def auc(score: np.ndarray, passed: np.ndarray) -> float:
 
 def squeeze_ratio(points: np.ndarray, mass_kg: float, com: np.ndarray, cfg: ValidateConfig) -> float:
     """The validator's total squeeze over the weight for contacts at ``points`` (one per finger)."""
-    total = squeeze_total_n(points, com, mass_kg, cfg.common)
+    total = squeeze_total_n(points, weight_loads(mass_kg, com, cfg.common), cfg.common.grip_safety)
     return max(total, cfg.common.min_grip_force_n * len(points)) / (mass_kg * GRAVITY_MPS2)
 
 

@@ -19,7 +19,7 @@ import pytest
 import sim.validate.targets as targets
 from sim.grasp import Grasp
 from sim.validate.config import GRAVITY_MPS2, ValidateConfig
-from sim.validate.targets import least_grip_total_n, squeeze_total_n
+from sim.validate.targets import least_grip_total_n, squeeze_total_n, weight_loads
 from sim.validate.validator import Validator
 from sim.world.objects import load_object
 from tests.conftest import needs_ycb
@@ -47,8 +47,9 @@ def common():
 
 
 def test_a_rim_pinch_needs_more_than_the_rule(common) -> None:
-    rule = squeeze_total_n(RIM_POINTS, RIM_COM, MASS_KG, common)
-    least = least_grip_total_n(RIM_POINTS, RIM_NORMALS_IN, RIM_COM, MASS_KG, common)
+    weight = weight_loads(MASS_KG, RIM_COM, common)
+    rule = squeeze_total_n(RIM_POINTS, weight, common.grip_safety)
+    least = least_grip_total_n(RIM_POINTS, RIM_NORMALS_IN, weight, common.grip_safety)
     assert np.isfinite(least)
     assert least > 2.0 * rule   # 114 N against the rule's 50 N
 
@@ -56,19 +57,21 @@ def test_a_rim_pinch_needs_more_than_the_rule(common) -> None:
 def test_a_pinch_through_the_centre_of_mass_needs_what_the_rule_gives(common) -> None:
     points = np.array([[-0.03, 0.0, 0.0], [0.03, 0.0, 0.0]])
     weight_over_mu = MASS_KG * GRAVITY_MPS2 / common.contact.friction[0]
-    least = least_grip_total_n(points, -RIM_NORMALS_IN, np.zeros(3), MASS_KG, common)
+    weight = weight_loads(MASS_KG, np.zeros(3), common)
+    least = least_grip_total_n(points, -RIM_NORMALS_IN, weight, common.grip_safety)
     assert least == pytest.approx(common.grip_safety * weight_over_mu, rel=1e-6)
-    assert least == pytest.approx(squeeze_total_n(points, np.zeros(3), MASS_KG, common), rel=1e-6)
+    assert least == pytest.approx(squeeze_total_n(points, weight, common.grip_safety), rel=1e-6)
 
 
 def test_contacts_that_cannot_hold_give_inf_and_the_weight_direction_counts(common) -> None:
     # two fingertips pressing down on a top face hold nothing hanging below them
     points = np.array([[-0.02, 0.0, 0.03], [0.02, 0.0, 0.03]])
     down_normals = np.tile([0.0, 0.0, -1.0], (2, 1))
-    assert least_grip_total_n(points, down_normals, np.zeros(3), MASS_KG, common) == np.inf
+    hanging = weight_loads(MASS_KG, np.zeros(3), common)
+    assert least_grip_total_n(points, down_normals, hanging, common.grip_safety) == np.inf
     # ... but carry a weight pulling up into them
-    up = least_grip_total_n(points, down_normals, np.zeros(3), MASS_KG, common,
-                            down=np.array([0.0, 0.0, 1.0]))
+    lifting = weight_loads(MASS_KG, np.zeros(3), common, down=np.array([0.0, 0.0, 1.0]))
+    up = least_grip_total_n(points, down_normals, lifting, common.grip_safety)
     assert up == pytest.approx(common.grip_safety * MASS_KG * GRAVITY_MPS2, rel=1e-6)
 
 

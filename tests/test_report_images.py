@@ -10,7 +10,8 @@ import pytest
 from dexaug.pipeline.report import palm_cloud_image
 from sim.hand.model import Hand
 from sim.hand.reference_grasps import load_reference_grasps
-from sim.validate.validator import RENDER_BACKGROUND_RGB, Validator
+from sim.validate.grasp_image import RENDER_BACKGROUND_RGB
+from sim.validate.validator import Validator
 from sim.world.objects import load_object
 from sim.world.render import frame_points, gl_available
 from tests.conftest import needs_menagerie, needs_ycb

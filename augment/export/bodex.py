@@ -130,7 +130,7 @@ def table_stages(table: ObjectTable, hand: Hand, object_name: str, *,
         own = {k: (a[i] if np.isfinite(a[i]).all() else None)
                for k, a in (("pregrasp", pre), ("squeeze", sq))}
         stages = v.stages(Grasp.from_arrays(palm[:3], palm[3:], table["hand_pose"][i], **own),
-                          convention)
+                          convention, sized_for="dgb")
         pre[i], sq[i], labels[i] = stages.pregrasp, stages.squeeze, f"derived:{stages.made_by}"
     return pre, sq, labels
 

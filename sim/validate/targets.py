@@ -11,9 +11,12 @@ lies beyond where the finger stops, so a fixed depth gives a force that depends 
 gains (the Menagerie Shadow Hand's ≈ 1 N·m/rad servos give ≈ 1 N per fingertip for 8 mm, too
 little to lift a sugar box with a fingertip grasp), and a fixed larger depth crushes light objects
 out of a pinch. Each grasping contact i (one per hand body near the object) is given a desired
-normal force ``f_i = max(grip_safety · m·g·(1 + d/ρ) / (μ · n_contacts), min_grip_force_n)``
-(d: centre of mass to the contacts' centroid, ρ: the contacts' spread), so that the friction of
-all contacts carries ``grip_safety`` times the object's weight and its moment about the grasp.
+normal force ``f_i = max(grip_safety · F·(1 + d/ρ) / (μ · n_contacts), min_grip_force_n)``
+(F: the load the protocol puts on the object — the weight m·g in a lift, the 1 N pushes of
+``dgb`` —, d: centre of mass to the contacts' centroid, ρ: the contacts' spread), so that the
+friction of all contacts carries ``grip_safety`` times the load and its moment about the grasp.
+The load, the friction and the servo stiffness are the ones of the protocol the squeeze is for
+(:class:`sim.metrics.holding.HoldLoads`).
 That rule of thumb credits every contact with a lever ρ against the weight's moment, which
 contacts on a thin wall do not have: a bowl pinched at its rim (thumb inside, fingers outside,
 6 cm from the centre of mass) can hold its moment only through a couple of contact forces at a
@@ -42,7 +45,7 @@ import mujoco
 import numpy as np
 
 from sim.hand.model import Hand
-from sim.metrics.holding import min_grip_force_n
+from sim.metrics.holding import HoldLoads, min_grip_force_n
 from sim.validate.config import GRAVITY_MPS2, CommonParams
 from sim.validate.contact_forces import balanced_normal_forces
 from sim.validate.effort import closest_per_body
@@ -50,7 +53,8 @@ from sim.world.contacts import Contacts
 from sim.world.scene import Scene
 
 __all__ = ["GraspTargets", "finger_joint_mask", "grip_force_n", "joint_stiffness",
-           "least_grip_total_n", "squeeze_total_n", "targets_from_contacts"]
+           "least_grip_total_n", "loads_in_world", "servo_stiffness_from", "squeeze_total_n",
+           "targets_from_contacts", "weight_loads"]
 
 # relative damping of the pseudo-inverses: the contact Jacobian's (m², as J Jᵀ) and the joint
 # stiffness's (times its largest eigenvalue; only makes singular directions harmless)
@@ -79,54 +83,78 @@ def finger_joint_mask(hand: Hand) -> np.ndarray:
     return np.array([n in finger_joints for n in hand.joint_names])
 
 
-def grip_force_n(scene: Scene, points: np.ndarray, common: CommonParams) -> float:
+def weight_loads(mass_kg: float, com_m: np.ndarray, common: CommonParams,
+                 down: np.ndarray | None = None) -> HoldLoads:
+    """The one load of a lift: the weight of ``mass_kg`` pulling along ``down`` (unit, world;
+    None: −z) at the centre of mass ``com_m`` (world, metres), with ``[common]`` friction."""
+    down = np.array([0.0, 0.0, -1.0]) if down is None else np.asarray(down, dtype=float)
+    load = np.concatenate([mass_kg * GRAVITY_MPS2 * down, np.zeros(3)])
+    friction = common.contact.friction
+    return HoldLoads(load[None, :], np.asarray(com_m, dtype=float), friction[0], friction[1],
+                     "lift-drop")
+
+
+def loads_in_world(loads: HoldLoads, scene: Scene) -> HoldLoads:
+    """``loads`` (object frame, as :func:`sim.validate.loads.hold_loads` gives them) turned
+    into the world frame of the object as ``scene`` holds it, about its simulated centre of
+    mass (what the squeeze presses on)."""
+    rot = scene.data.xmat[scene.obj_body].reshape(3, 3)
+    w = np.asarray(loads.loads, dtype=float).reshape(-1, 6)
+    world = np.hstack([w[:, :3] @ rot.T, w[:, 3:] @ rot.T])
+    return HoldLoads(world, scene.data.xipos[scene.obj_body].copy(), loads.mu,
+                     loads.mu_torsion_m, loads.protocol)
+
+
+def grip_force_n(points: np.ndarray, loads: HoldLoads, common: CommonParams) -> float:
     """Desired normal force (newtons) per grasping contact, for contacts at ``points`` (n, 3).
 
-    Friction must carry the object's weight W and its moment about the grasp: with the
-    centre of mass a distance d from the contacts' centroid and the contacts spread ρ (RMS)
-    around it, friction forces hold a torque of about μ·Σf·ρ, so Σf ≥ W·(1 + d/ρ)/μ covers
-    both (conservatively, as if they added). Scaled by ``grip_safety``, split over the n
-    contacts, never less than ``min_grip_force_n``.
+    Friction must carry the load F (the weight in a lift, the largest push of a push test) and
+    its moment about the grasp: with the centre of mass a distance d from the contacts'
+    centroid and the contacts spread ρ (RMS) around it, friction forces hold a torque of about
+    μ·Σf·ρ, so Σf ≥ F·(1 + d/ρ)/μ covers both (conservatively, as if they added). Scaled by
+    ``grip_safety``, split over the n contacts, never less than ``min_grip_force_n``.
     """
-    total_n = squeeze_total_n(points, scene.data.xipos[scene.obj_body], scene.obj_mass_kg, common)
+    total_n = squeeze_total_n(points, loads, common.grip_safety)
     return max(total_n / len(points), common.min_grip_force_n)
 
 
-def squeeze_total_n(points: np.ndarray, com_m: np.ndarray, mass_kg: float,
-                    common: CommonParams) -> float:
+def squeeze_total_n(points: np.ndarray, loads: HoldLoads, grip_safety: float) -> float:
     """The squeeze's total normal force (newtons) before the per-contact floor:
-    ``grip_safety · m·g·(1 + d/ρ) / μ`` for contacts at ``points`` (n, 3) around a centre of
-    mass at ``com_m`` (same frame, metres); :func:`grip_force_n` has the reasoning."""
+    ``grip_safety · F·(1 + d/ρ) / μ`` for contacts at ``points`` (n, 3), F the largest force
+    among ``loads`` (same frame as the points, centre of mass ``loads.com_m``);
+    :func:`grip_force_n` has the reasoning."""
     centroid = points.mean(axis=0)
     spread_m = max(float(np.sqrt(((points - centroid) ** 2).sum(axis=1).mean())), _MIN_LEVER_M)
-    offset_m = float(np.linalg.norm(np.asarray(com_m, dtype=float) - centroid))
-    return (common.grip_safety * mass_kg * GRAVITY_MPS2 * (1.0 + offset_m / spread_m)
-            / common.contact.friction[0])
+    offset_m = float(np.linalg.norm(np.asarray(loads.com_m, dtype=float) - centroid))
+    force_n = float(np.linalg.norm(np.asarray(loads.loads, dtype=float).reshape(-1, 6)[:, :3],
+                                   axis=1).max())
+    return grip_safety * force_n * (1.0 + offset_m / spread_m) / loads.mu
 
 
-def least_grip_total_n(points: np.ndarray, normals_in: np.ndarray, com_m: np.ndarray,
-                       mass_kg: float, common: CommonParams,
-                       down: np.ndarray | None = None) -> float:
+def least_grip_total_n(points: np.ndarray, normals_in: np.ndarray, loads: HoldLoads,
+                       grip_safety: float) -> float:
     """``grip_safety`` times the least total normal force (newtons) with which contacts at
-    ``points`` (n, 3) pressing along ``normals_in`` (n, 3, into the object) hold the object's
-    weight pulling along ``down`` (unit, same frame; None: −z) with the configured sliding and
-    torsional friction; ``inf`` when they cannot hold it however hard they press.
+    ``points`` (n, 3) pressing along ``normals_in`` (n, 3, into the object) hold each of
+    ``loads`` (same frame) with its sliding and torsional friction — the largest of those over
+    the loads these contacts can hold at all; ``inf`` when they can hold none of them however
+    hard they press (a load they cannot hold fails the test whatever the squeeze: the squeeze
+    is sized for the others).
 
     Why, beside :func:`squeeze_total_n`: that rule sizes the squeeze from the contacts' spread
-    ρ, but only a spread across the weight's moment arm helps. Opposed contacts on a thin wall
+    ρ, but only a spread across the load's moment arm helps. Opposed contacts on a thin wall
     (a bowl's rim) are spread along the wall, and the moment of a centre of mass 6 cm away must
     come from a couple of contact forces a few millimetres apart; the linear programme of
     :func:`sim.metrics.holding.min_grip_force_n` knows that, the rule does not.
     """
-    down = np.array([0.0, 0.0, -1.0]) if down is None else np.asarray(down, dtype=float)
-    weight = mass_kg * GRAVITY_MPS2 * down
-    load = np.concatenate([weight, np.zeros(3)])
-    friction = common.contact.friction
-    least = min_grip_force_n(points, normals_in, com_m, load, friction[0], friction[1])
-    return common.grip_safety * least
+    least = [min_grip_force_n(points, normals_in, loads.com_m, load, loads.mu,
+                              loads.mu_torsion_m)
+             for load in np.asarray(loads.loads, dtype=float).reshape(-1, 6)]
+    finite = [x for x in least if np.isfinite(x)]
+    return grip_safety * max(finite) if finite else float("inf")
 
 
-def joint_stiffness(scene: Scene, finger_mask: np.ndarray) -> np.ndarray:
+def joint_stiffness(scene: Scene, finger_mask: np.ndarray,
+                    act_stiffness: np.ndarray | None = None) -> np.ndarray:
     """Joint-space stiffness (nq × nq over the hand's joints; N·m/rad for hinges) of the
     hand's finger servos at the current state: ``K_q = Mᵀ diag(k) M``.
 
@@ -134,7 +162,9 @@ def joint_stiffness(scene: Scene, finger_mask: np.ndarray) -> np.ndarray:
     actuators and k each actuator's position stiffness at a fixed control: ``−biasprm[1]``
     for a fixed-gain, affine-bias actuator (a position servo: kp), 0 for anything else (a
     motor holds no position). Rows and columns outside the finger joints (``finger_mask``,
-    :func:`finger_joint_mask`) are zero, since the squeeze moves fingers only. Needs
+    :func:`finger_joint_mask`) are zero, since the squeeze moves fingers only.
+    ``act_stiffness`` (per ``scene.hand_act``) replaces k where the squeeze is for servos of
+    another scene with the same actuators (the ``dgb`` protocol's kp 5 on every servo). Needs
     ``mj_forward`` (or ``mj_fwdPosition``) to have run.
     """
     m, d = scene.model, scene.data
@@ -142,9 +172,21 @@ def joint_stiffness(scene: Scene, finger_mask: np.ndarray) -> np.ndarray:
     mujoco.mju_sparse2dense(moment, d.actuator_moment, d.moment_rownnz, d.moment_rowadr,
                             d.moment_colind)
     acts = scene.hand_act
-    k = np.where(scene.position_servos(), np.maximum(-m.actuator_biasprm[acts, 1], 0.0), 0.0)
+    k = (np.where(scene.position_servos(), np.maximum(-m.actuator_biasprm[acts, 1], 0.0), 0.0)
+         if act_stiffness is None else np.asarray(act_stiffness, dtype=float))
     arm = moment[np.ix_(acts, scene.hand_dadr)] * finger_mask
     return arm.T @ (k[:, None] * arm)
+
+
+def servo_stiffness_from(source: Scene, scene: Scene) -> np.ndarray:
+    """Per hand actuator of ``scene``, the position stiffness (kp) its same-named actuator has
+    in ``source``'s compiled model (0 where ``source`` has none: the wrist of the benchmark's
+    floating palm) — for a squeeze derived in ``scene`` and simulated in ``source``."""
+    m = source.model
+    kp = np.where(source.position_servos(),
+                  np.maximum(-m.actuator_biasprm[source.hand_act, 1], 0.0), 0.0)
+    by_name = {m.actuator(int(a)).name: float(k) for a, k in zip(source.hand_act, kp, strict=True)}
+    return np.array([by_name.get(scene.model.actuator(int(a)).name, 0.0) for a in scene.hand_act])
 
 
 def _stiffness_pinv(stiffness: np.ndarray) -> np.ndarray:
@@ -158,7 +200,8 @@ def _stiffness_pinv(stiffness: np.ndarray) -> np.ndarray:
 
 def targets_from_contacts(scene: Scene, hand: Hand, q: np.ndarray, near: Contacts,
                           common: CommonParams, finger_mask: np.ndarray,
-                          down: np.ndarray | None = None) -> GraspTargets:
+                          loads: HoldLoads | None = None,
+                          act_stiffness: np.ndarray | None = None) -> GraspTargets:
     """Pregrasp and squeeze joint vectors of the grasp placed in ``scene`` at joints ``q``,
     from its hand–object contacts and near misses ``near`` (distances in metres).
 
@@ -166,8 +209,10 @@ def targets_from_contacts(scene: Scene, hand: Hand, q: np.ndarray, near: Contact
     pregrasp, distance + squeeze depth for the squeeze). The squeeze then adds the servo
     deflection ``K_q⁺ Jᵀ f`` that presses each of those points into the object with the grip
     force f (module docstring): the larger of :func:`grip_force_n`'s rule and the least grip
-    that holds the weight pulling along ``down`` (world, unit; None: −z) at these contacts
-    (:func:`least_grip_total_n`), split over them. No body near the object gives
+    that holds ``loads`` at these contacts (:func:`least_grip_total_n`), split over them.
+    ``loads`` (world frame, about the object's centre of mass): what the protocol asks the
+    grasp to hold; None: the scene's object's weight along −z with ``[common]`` friction.
+    ``act_stiffness``: see :func:`joint_stiffness`. No body near the object gives
     ``n_bodies_near = 0`` and ``q`` for both targets.
     """
     m, d = scene.model, scene.data
@@ -188,9 +233,10 @@ def targets_from_contacts(scene: Scene, hand: Hand, q: np.ndarray, near: Contact
                             np.eye(len(rows)))
     pinv = jac.T @ solve
     pre = hand.clip(q + pinv @ (gaps - common.pregrasp_backoff_m))
-    force_n = grip_force_n(scene, np.array(closest), common)
-    least_n = least_grip_total_n(np.array(closest), np.array(normals), d.xipos[scene.obj_body],
-                                 scene.obj_mass_kg, common, down)
+    if loads is None:
+        loads = weight_loads(scene.obj_mass_kg, d.xipos[scene.obj_body], common)
+    force_n = grip_force_n(np.array(closest), loads, common)
+    least_n = least_grip_total_n(np.array(closest), np.array(normals), loads, common.grip_safety)
     if np.isfinite(least_n):
         force_n = max(force_n, least_n / len(rows))
     if common.squeeze_forces == "balanced":
@@ -201,6 +247,6 @@ def targets_from_contacts(scene: Scene, hand: Hand, q: np.ndarray, near: Contact
     # joint torques that press every contact with its force (normals point into the object),
     # and the servo deflection that produces them
     torque = jac.T @ forces
-    deflection = _stiffness_pinv(joint_stiffness(scene, finger_mask)) @ torque
+    deflection = _stiffness_pinv(joint_stiffness(scene, finger_mask, act_stiffness)) @ torque
     squeeze = hand.clip(q + pinv @ (gaps + common.squeeze_depth_m) + deflection)
     return GraspTargets(pre, squeeze, len(rows), force_n)

@@ -34,11 +34,19 @@ from sim.validate.config import PROTOCOLS, ValidateConfig
 from sim.validate.dgb import run_dgb
 from sim.validate.effort import actuator_effort
 from sim.validate.lift_drop import Observer, lift_drop, unit_down
+from sim.validate.loads import hold_loads
 from sim.validate.program import Advance, Program, run_here
 from sim.validate.result import Failure, ValidationResult
 from sim.validate.six_dir import six_dir
 from sim.validate.stages import GraspStages, grasp_stages
-from sim.validate.targets import GraspTargets, finger_joint_mask, targets_from_contacts
+from sim.validate.targets import (
+    GraspTargets,
+    finger_joint_mask,
+    loads_in_world,
+    servo_stiffness_from,
+    targets_from_contacts,
+    weight_loads,
+)
 from sim.world.contacts import Contacts, contacts_between, merge_nearby
 from sim.world.hand_spec import ServoSettings
 from sim.world.objects import ObjectAsset
@@ -52,11 +60,6 @@ BACKENDS = ("mujoco", "warp")
 #: grasps a validator keeps in flight at once on mujoco.batch (lift-drop, six-dir)
 BATCH_SIMS = 16
 
-
-#: hand geoms within this distance (m) of the object's centre are framed by :meth:`Validator.render`
-FRAME_HAND_M = 0.12
-#: the background of :meth:`Validator.render`'s images (light grey: prints, shows dark hands)
-RENDER_BACKGROUND_RGB = (236, 238, 242)
 
 
 class Validator:
@@ -135,28 +138,42 @@ class Validator:
         return Contacts(near.pos[keep], near.normal[keep], near.dist[keep], near.body_a[keep],
                         near.force_n[keep])
 
-    def derive_targets(self, scene: Scene, q: np.ndarray,
-                       down: np.ndarray | None = None) -> GraspTargets:
+    def derive_targets(self, scene: Scene, q: np.ndarray, down: np.ndarray | None = None, *,
+                       sized_for: str = "lift-drop") -> GraspTargets:
         """Pregrasp and squeeze joint vectors from the contacts near the placed grasp.
 
         Object geoms get a temporary margin of ``contact_search_m`` so MuJoCo reports near
         misses with their distance; :func:`sim.validate.targets.targets_from_contacts` moves
-        each hand body's closest point along its normal and adds the squeeze's grip force, sized
-        for the weight pulling along ``down`` (world unit vector; None: −z, lift-drop's default).
+        each hand body's closest point along its normal and adds the squeeze's grip force.
+        ``sized_for`` names the protocol whose load the grip is sized for: ``lift-drop`` (and
+        ``six-dir``) — the weight of the scene's object pulling along ``down`` (world unit
+        vector; None: −z), ``[common]`` friction, the scene's servos; ``dgb`` — the
+        benchmark's six pushes on its object mass (:func:`sim.validate.loads.hold_loads`), its
+        friction, and the stiffness of its servos read back from its compiled scene, since
+        the squeeze is then simulated there.
         """
+        loads, stiffness = None, None
+        if sized_for == "dgb":
+            loads = loads_in_world(hold_loads(self.obj, "dgb", self.config), scene)
+            stiffness = servo_stiffness_from(self.scene("dgb"), scene)
+        elif down is not None:
+            loads = weight_loads(scene.obj_mass_kg, scene.data.xipos[scene.obj_body],
+                                 self.config.common, down)
         return targets_from_contacts(scene, self.hand, q, self._near_contacts(scene),
-                                     self.config.common, self._finger_mask, down)
+                                     self.config.common, self._finger_mask, loads, stiffness)
 
-    def stages(self, grasp: Grasp, convention: str | None = None) -> GraspStages:
+    def stages(self, grasp: Grasp, convention: str | None = None, *,
+               sized_for: str = "lift-drop") -> GraspStages:
         """Pregrasp, grasp and squeeze of ``grasp``: its own when it carries them, else made by
         ``convention`` (default: ``[dgb] squeeze_convention``; :mod:`sim.validate.stages`),
-        whose ``dexaug`` targets come from the lift-drop scene's contacts."""
+        whose ``dexaug`` targets come from the lift-drop scene's contacts with the grip sized
+        for protocol ``sized_for`` (:meth:`derive_targets`; an arm's lift: ``lift-drop``)."""
         q = self.hand.check_q(grasp.joints, "grasp joints")
 
         def derive() -> GraspTargets:
             scene = self.scene("lift-drop")
             self._place(scene, grasp, q)
-            return self.derive_targets(scene, q)
+            return self.derive_targets(scene, q, sized_for=sized_for)
 
         return grasp_stages(grasp, convention or self.config.dgb.squeeze_convention, derive)
 
@@ -337,7 +354,7 @@ class Validator:
 
     def _validate_dgb(self, grasp: Grasp, convention: str | None) -> ValidationResult:
         """The benchmark's protocol on the grasp's stages (:mod:`sim.validate.dgb`)."""
-        stages = self.stages(grasp, convention)
+        stages = self.stages(grasp, convention, sized_for="dgb")
         scene = self.scene("dgb")
         result = ValidationResult(protocol="dgb", passed=False, failure=None, penetration_m=0.0,
                                   closing="free", squeeze_convention=stages.made_by,
@@ -369,12 +386,9 @@ class Validator:
 
     def render(self, grasp: Grasp, width: int = 640, height: int = 480, *,
                geom_ids: list[np.ndarray] | None = None) -> np.ndarray:
-        """RGB image of the grasp after closing (lift-drop scene), contacts marked, on a light
-        background; the camera frames the bounding boxes of the object's geoms and of the hand
-        geoms within ``FRAME_HAND_M`` of it, so a small object is not lost beside a large hand
-        and the hand near it is not cropped (the forearm may leave the frame). ``geom_ids``: see
-        :func:`sim.world.render.render_scene`."""
-        from sim.world.render import frame_points, geom_box_corners, render_scene
+        """RGB image of the grasp after closing in the lift-drop scene, framed by
+        :func:`sim.validate.grasp_image.framed_image`."""
+        from sim.validate.grasp_image import framed_image
 
         q = self.hand.check_q(grasp.joints, "grasp joints")
         scene = self.scene("lift-drop")
@@ -382,13 +396,4 @@ class Validator:
         targets = self.derive_targets(scene, q)
         if targets.n_bodies_near:
             self._close(scene, targets)
-        m, d = scene.model, scene.data
-        corners = geom_box_corners(m, d, np.flatnonzero(scene.obj_geom_mask))
-        centre = corners.mean(axis=0) if len(corners) else scene.object_pose()[0]
-        hand = np.flatnonzero(scene.hand_geom_mask)
-        near = hand[np.linalg.norm(d.geom_xpos[hand] - centre, axis=1) < FRAME_HAND_M]
-        lookat, distance = frame_points(
-            np.vstack([corners, geom_box_corners(m, d, near), centre[None]]),
-            fovy_deg=float(m.vis.global_.fovy), margin=1.0)
-        return render_scene(m, d, lookat=lookat, distance_m=distance, width=width, height=height,
-                            background_rgb=RENDER_BACKGROUND_RGB, geom_ids=geom_ids)
+        return framed_image(scene, width, height, geom_ids=geom_ids)
