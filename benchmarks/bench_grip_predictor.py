@@ -14,7 +14,8 @@ with the loads of the dataset's protocol, and compares with the stored verdicts:
 * **effort > 1**: the share of grasps the actuators cannot hold the load with, and how many
   of those passed;
 * **precision / recall** of the rule "holds when the squeeze the validator applies is at least
-  the least grip": total squeeze ``grip_safety · W · (1 + d/ρ) / μ`` (``configs/validate.toml``;
+  the least grip": total squeeze ``grip_safety · F · (1 + d/ρ) / μ`` (F the protocol's largest
+  load: the weight, or a push; ``configs/validate.toml``;
   d, ρ from the per-finger contacts, as ``sim.validate.targets`` computes it) ≥ λ*;
 * the share of grasps whose contacts cannot hold the load at all (ratio = inf), and the
   finger-count distribution of the passing grasps.
@@ -35,10 +36,10 @@ import numpy as np
 from augment import dataset
 from sim.grasp import Grasp
 from sim.hand.model import Hand
-from sim.metrics.holding import finger_contacts
-from sim.validate.config import GRAVITY_MPS2, ValidateConfig
+from sim.metrics.holding import HoldLoads, finger_contacts
+from sim.validate.config import ValidateConfig
 from sim.validate.loads import hold_loads
-from sim.validate.targets import squeeze_total_n, weight_loads
+from sim.validate.targets import squeeze_total_n
 from sim.validate.validator import Validator
 from sim.world.objects import load_object
 
@@ -53,10 +54,12 @@ def auc(score: np.ndarray, passed: np.ndarray) -> float:
     return float(less / (len(pos) * len(neg)))
 
 
-def squeeze_ratio(points: np.ndarray, mass_kg: float, com: np.ndarray, cfg: ValidateConfig) -> float:
-    """The validator's total squeeze over the weight for contacts at ``points`` (one per finger)."""
-    total = squeeze_total_n(points, weight_loads(mass_kg, com, cfg.common), cfg.common.grip_safety)
-    return max(total, cfg.common.min_grip_force_n * len(points)) / (mass_kg * GRAVITY_MPS2)
+def squeeze_ratio(points: np.ndarray, hold: HoldLoads, cfg: ValidateConfig) -> float:
+    """The validator's total squeeze for the protocol's loads ``hold`` (its friction; the
+    largest load force), over that force, for contacts at ``points`` (one per finger)."""
+    total = squeeze_total_n(points, hold, cfg.common.grip_safety)
+    force_n = float(np.linalg.norm(np.asarray(hold.loads).reshape(-1, 6)[:, :3], axis=1).max())
+    return max(total, cfg.common.min_grip_force_n * len(points)) / force_n
 
 
 def rows_of(path: Path, cfg: ValidateConfig) -> list[dict[str, object]]:
@@ -77,7 +80,7 @@ def rows_of(path: Path, cfg: ValidateConfig) -> list[dict[str, object]]:
                 efforts.append(validator.actuator_effort(
                     Grasp(pose[:3], pose[3:], t.columns["hand_pose"][i]), hold, protocol))
                 centres, _ = finger_contacts(p, n, f)
-                budgets.append(squeeze_ratio(centres, obj.mass_kg, obj.com_m, cfg))
+                budgets.append(squeeze_ratio(centres, hold, cfg))
                 passed.append(bool(t.columns["passed"][i]))
                 fingers.append(int(t.columns["fingers_used"][i].sum()))
                 eps.append(float(t.columns["gws"][i]))

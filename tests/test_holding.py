@@ -11,6 +11,7 @@ finding more (``hold_oversample``) keeps grasps that need less grip.
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 import pytest
@@ -168,8 +169,10 @@ def test_an_object_too_heavy_for_the_actuators_gets_one_warning(shadow, caplog) 
     from sim.world.objects import load_object
 
     obj = load_object("005_tomato_soup_can")
+    # the effort filter off, so the grasps carry no stored effort and the scores below decide
     res = generate_grasps(shadow, object_cloud(obj), build_workspace(shadow), n=4, seed=0,
-                          time_budget_s=30)
+                          time_budget_s=30, params=dataclasses.replace(
+                              load_fsg_params(shadow.config), max_actuator_effort=math.inf))
     light = SceneEffort(shadow.name, obj.name)
     with caplog.at_level(logging.WARNING, logger="dexaug.pipeline.run"):
         least_light = warn_if_too_heavy(res, light, obj.name)

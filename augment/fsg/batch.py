@@ -98,7 +98,7 @@ class Sampler:
         self.index = FingerIndex.build(self.clouds, self.params)
         self.stats: dict[str, int] = {k: 0 for k in (
             "candidates", "palm", "table", "no_match", "contacts", "depth", "link", "epsilon",
-            "duplicate", "penetration", "accepted", "accepted_open", "relaxed")}
+            "duplicate", "penetration", "effort", "accepted", "accepted_open", "relaxed")}
         self.accepted: list[FsgGrasp] = []
         #: grasps without force closure (ε ≤ ``min_epsilon``) are dropped until
         #: :func:`augment.fsg.run.run_rounds` relaxes this (``relax_closure``)
@@ -177,6 +177,9 @@ class Sampler:
             ratio = (s.hold.grip_ratio(cpts, cnrm, finger_i) if s.hold is not None
                      else float("nan"))
             effort = s.effort(grasp) if s.effort is not None else float("nan")
+            if effort > p.max_actuator_effort:   # the actuators cannot hold the loads here
+                self.stats["effort"] += 1
+                continue
             self.dedup.add(palm_pos, quat, q)
             self.stats["accepted"] += 1
             self.stats["accepted_open"] += int(not closure)

@@ -61,6 +61,7 @@ class FsgParams:
     dedup_quat: float = 5e-3
     dedup_joint_rad: float = 0.1
     hold_oversample: float = 1.0
+    max_actuator_effort: float = math.inf
 
     def __post_init__(self) -> None:
         for name in ("outer", "inner", "outer_batch", "k_neighbours", "min_contacts",
@@ -69,6 +70,9 @@ class FsgParams:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         if not self.hold_oversample >= 1.0:
             raise ValueError(f"hold_oversample must be >= 1, got {self.hold_oversample}")
+        if not self.max_actuator_effort > 0:
+            raise ValueError(f"max_actuator_effort must be > 0 (inf: off), got "
+                             f"{self.max_actuator_effort}")
         for name in ("match_distance_m", "fingertip_width_m", "contact_plane_m", "mu"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):

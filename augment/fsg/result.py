@@ -59,7 +59,8 @@ class FsgResult:
     """Grasps (sorted by ε, best first) plus what happened: ``requested`` vs ``len(grasps)``
     (``shortfall``), ``stopped`` ("done", "time budget"), wall time, and counts summed over
     workers: candidates and where they were rejected (palm, table, no_match, contacts, depth,
-    link, epsilon, duplicate, penetration), accepted (``accepted_open`` of them without force
+    link, epsilon, duplicate, penetration, effort: actuators too weak for the loads), accepted
+    (``accepted_open`` of them without force
     closure), ``relaxed`` (workers whose closure filter was relaxed), and per finger the k-d tree pairs with
     opposed normals (``pairs_<finger>``) and those left after eq. 2 and the crossing rule
     (``usable_<finger>``). ``finger_sets`` lists the finger sets finger iteration went through."""

@@ -28,10 +28,12 @@ hold the worst load at the placed grasp (:mod:`sim.validate.effort`, via the cal
 and its grip ratio — the least total normal force within the simulation's friction cones, over
 the load (:mod:`sim.metrics.holding`); the workers find ``hold_oversample`` × n grasps, and the
 n with the least effort are kept (grip ratio, then ε break ties; a grasp that cannot hold some
-load comes last). Scoring costs ≈ 15 ms per accepted grasp, so it runs only when
-``hold_oversample`` > 1 (default 1: measured, the selection's pass-rate gain costs more
-validated grasps per minute than it brings on most demos). Otherwise output is sorted by ε as
-in the paper.
+load comes last). With ``max_actuator_effort`` finite, a grasp whose effort exceeds it is
+rejected like a penetrating one (counted as ``effort``) and the search goes on: above 1 the
+actuators cannot hold the loads at those contacts however they squeeze, which the validator
+then confirms at the price of a simulation. Scoring costs ≈ 15 ms per accepted grasp, so it
+runs only when ``hold_oversample`` > 1 or the effort filter is on. Output is sorted by ε as in
+the paper unless ranked.
 """
 
 from __future__ import annotations
@@ -59,7 +61,7 @@ if TYPE_CHECKING:
     from sim.hand.model import Hand
     from sim.world.objects import ObjectAsset
 
-__all__ = ["generate", "merge", "misses_budget", "run_rounds"]
+__all__ = ["TOO_WEAK", "TOO_WEAK_AFTER", "generate", "merge", "misses_budget", "run_rounds"]
 
 log = logging.getLogger(__name__)
 
@@ -67,11 +69,21 @@ log = logging.getLogger(__name__)
 WorkerOutput = tuple[list[FsgGrasp], dict[str, int], str, list[tuple[str, ...]]]
 
 
+#: stop reason of a search whose first :data:`TOO_WEAK_AFTER` grasps all needed more than
+#: ``max_actuator_effort``; 30 without one accepted is far beyond the 0–10 % such grasps make
+#: of an object the hand can hold (README "Grasps that hold")
+TOO_WEAK = "actuators too weak"
+TOO_WEAK_AFTER = 30
+
+
 def run_rounds(sampler: Sampler, n: int, deadline: float,
                on_batch: Callable[[int], None] | None = None) -> tuple[str, list[tuple[str, ...]]]:
     """Batches of ``sampler`` in rounds of ``outer`` outer iterations, with finger iteration and
     closure relaxation, until it holds ``n`` grasps ("done") or ``time.monotonic()`` passes
-    ``deadline`` ("time budget"). Returns the reason and the finger sets used, in order.
+    ``deadline`` ("time budget"), or until :data:`TOO_WEAK_AFTER` grasps were rejected for
+    the actuator effort before any was accepted (:data:`TOO_WEAK`: an object the hand's
+    actuators cannot hold, reported at once rather than after the whole budget). Returns the
+    reason and the finger sets used, in order.
     ``on_batch`` gets the number of grasps held after each batch (progress)."""
     fingers = sampler.setup.fingers
     sets = [fingers]
@@ -88,6 +100,8 @@ def run_rounds(sampler: Sampler, n: int, deadline: float,
             b = min(p.outer_batch, p.outer - done_outer)
             sampler.batch(fingers, b)
             done_outer += b
+            if not sampler.accepted and sampler.stats["effort"] >= TOO_WEAK_AFTER:
+                return TOO_WEAK, sets
             if on_batch is not None:
                 on_batch(len(sampler.accepted))
         if len(sampler.accepted) >= n:
@@ -248,10 +262,13 @@ def generate(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: WorkspaceClo
         active = active[:fingers]
     if len(active) < 2:
         raise FsgError(f"FSG needs at least 2 fingers, got {list(active)}")
-    # ranking costs a score per accepted grasp (≈ 15 ms of effort LP and collision pass), so it
-    # runs only when it selects: hold_oversample > 1
+    # scoring costs ≈ 15 ms per accepted grasp (effort LP and collision pass), so it runs only
+    # when it selects (hold_oversample > 1) or filters (a finite max_actuator_effort)
+    filters = effort is not None and math.isfinite(params.max_actuator_effort)
     if params.hold_oversample <= 1.0:
-        hold = effort = None
+        hold = None
+        if not filters:
+            effort = None
     palm = hand.config.palm
     setup = SamplerSetup(
         hand=hand.name, cloud=cloud, workspace=workspace, part_idx=part_idx,
@@ -265,7 +282,7 @@ def generate(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: WorkspaceClo
         params=dataclasses.replace(params, min_fingers=max(params.min_fingers, 2)), hold=hold,
         effort=effort, idle_skeletons=_idle_skeletons(hand) if table else {})
     # with loads, find more than n and keep the n that hold them with the least effort / grip
-    ranked = hold is not None or effort is not None
+    ranked = params.hold_oversample > 1.0 and (hold is not None or effort is not None)
     wanted = math.ceil(n * params.hold_oversample) if ranked else n
     shown = (None if progress is None
              else lambda k: progress(min(n, k * n // wanted)))

@@ -39,8 +39,9 @@ from augment import dataset
 from augment.autows.build import build_workspace
 from augment.autows.cloud import WorkspaceCloud
 from augment.autows.seed import DemoSeed
+from augment.fsg.params import load_fsg_params
 from augment.fsg.result import FsgResult
-from augment.fsg.run import generate
+from augment.fsg.run import TOO_WEAK, generate
 from augment.fsg.table import TablePlane
 from augment.object_cloud import ObjectCloud, object_cloud
 from dexaug.pipeline.options import AugmentOptions, Progress, demo_dir, result_configs, run_key
@@ -86,7 +87,14 @@ def generate_grasps(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: Works
         persistent_pool(workers, preload=POOL_PRELOAD)
     res = generate(hand, obj, workspace, link_penetration=link_penetration,
                    exact_penetration=exact, workers=workers, hold=hold, effort=effort, **kwargs)
-    if effort is not None:
+    if res.stopped == TOO_WEAK:
+        log.warning("%s (%.2f kg, %s): FSG stopped: its first %d grasps all need more than "
+                    "%.3g× the actuators' force limits to hold it (max_actuator_effort); no "
+                    "grasp this hand makes can (more fingers, a power grasp or a stronger hand "
+                    "are needed)", obj.name, load_object(obj.name).mass_kg, hold_protocol,
+                    res.stats.get("effort", 0),
+                    (kwargs.get("params") or load_fsg_params(hand.config)).max_actuator_effort)
+    elif effort is not None:
         warn_if_too_heavy(res, effort, obj.name)
     return res
 
