@@ -145,16 +145,16 @@ class Validator:
         Object geoms get a temporary margin of ``contact_search_m`` so MuJoCo reports near
         misses with their distance; :func:`sim.validate.targets.targets_from_contacts` moves
         each hand body's closest point along its normal and adds the squeeze's grip force.
-        ``sized_for`` names the protocol whose load the grip is sized for: ``lift-drop`` (and
-        ``six-dir``) — the weight of the scene's object pulling along ``down`` (world unit
-        vector; None: −z), ``[common]`` friction, the scene's servos; ``dgb`` — the
-        benchmark's six pushes on its object mass (:func:`sim.validate.loads.hold_loads`), its
-        friction, and the stiffness of its servos read back from its compiled scene, since
-        the squeeze is then simulated there.
+        ``sized_for`` names the protocol whose load the grip is sized for: ``lift-drop`` — the
+        weight of the scene's object pulling along ``down`` (world unit vector; None: −z),
+        ``[common]`` friction; ``six-dir`` and ``dgb`` — their six pushes
+        (:func:`sim.validate.loads.hold_loads`) with their friction; for ``dgb`` also the
+        stiffness of its servos, read back from its compiled scene, where the squeeze runs.
         """
         loads, stiffness = None, None
+        if sized_for in ("six-dir", "dgb"):
+            loads = loads_in_world(hold_loads(self.obj, sized_for, self.config), scene)
         if sized_for == "dgb":
-            loads = loads_in_world(hold_loads(self.obj, "dgb", self.config), scene)
             stiffness = servo_stiffness_from(self.scene("dgb"), scene)
         elif down is not None:
             loads = weight_loads(scene.obj_mass_kg, scene.data.xipos[scene.obj_body],
@@ -326,7 +326,7 @@ class Validator:
         if penetration > self.config.common.max_penetration_m:
             result.failure = Failure.PENETRATION
             return result, None
-        targets = self.derive_targets(here, q, down)
+        targets = self.derive_targets(here, q, down, sized_for=protocol)
         result.pregrasp, result.squeeze = targets.pregrasp, targets.squeeze
         result.squeeze_convention = "dexaug"
         if targets.n_bodies_near == 0:

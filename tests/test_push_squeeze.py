@@ -1,11 +1,13 @@
-"""The ``dexaug`` squeeze of the ``dgb`` protocol is sized for the benchmark's own load.
+"""The squeeze of the push protocols (``dgb``, ``six-dir``) is sized for their own pushes.
 
 The squeeze presses each contact with a force sized for what the protocol asks the grasp to
 hold (:mod:`sim.validate.targets`). For ``dgb`` that is not the object's weight in a lift but
 six 1 N pushes on a 0.1 kg object, with the benchmark's friction (μ 0.6 / 0.02) and its servos
 (kp 5 on every finger servo), and the stages are simulated in the benchmark's scene. Sized for
 the real weight instead, a 5 g dice got the 0.25 N floor per contact against 1 N pushes.
-Measured on the augmentations of five demonstrations (n = 200, README "Grasps that hold").
+``six-dir`` pushes 10·m N along ±x, ±y, ±z: its squeeze is sized for those six, not for the
+weight along −z. Measured on the augmentations of the demonstrations (README "Grasp
+validation").
 """
 
 from __future__ import annotations
@@ -22,6 +24,18 @@ from sim.validate.targets import least_grip_total_n, servo_stiffness_from
 from sim.validate.validator import Validator
 from sim.world.objects import load_object
 from tests.conftest import needs_ycb
+
+#: a grasp of the same augmentation that holds six-dir's pushes with the squeeze sized for them
+#: (5 mm, 6°) and turns 20° out of it with the one sized for the weight
+SIX_DIR_GRASP = Grasp(
+    np.array([-0.03546825425588464, 0.09443484745332723, 0.03534751549979625]),
+    np.array([0.4053875543742801, 0.6731240732339961, -0.04137489836024043, 0.6171329115976509]),
+    np.array([0.0, 0.0, 0.01778353740028353, -0.05254292519943295, 0.9124164625997165,
+              0.9094764625997165, 0.329292925199433, 0.27557, 0.77596, 0.77192,
+              -0.2927364625997165, 0.3843064625997165, 0.6817035374002836, 0.6781835374002835,
+              0.08532646259971648, -0.20308, 0.4404464625997165, 0.49224707480056706,
+              0.488897074800567, 0.39785646259971646, 0.92592, 0.19558292519943293, 0.35953,
+              0.15464353740028353]))
 
 #: an opposed pinch along x through the centre of mass
 PINCH = np.array([[-0.02, 0.0, 0.0], [0.02, 0.0, 0.0]])
@@ -111,3 +125,17 @@ def test_a_sugar_box_grasp_holds_the_benchmark_only_when_squeezed_for_it(shadow,
     assert bool(result.passed) is (sized_for == "dgb"), (result.displacement_m, result.rotation_rad)
     if sized_for == "dgb":   # and the protocol itself sizes it so
         assert v.validate(SUGAR_BOX_GRASP, "dgb", squeeze_convention="dexaug").passed
+
+
+@needs_ycb
+@pytest.mark.parametrize("sized_for", ["six-dir", "lift-drop"])
+def test_six_dir_squeezes_for_its_pushes(shadow, monkeypatch, sized_for: str) -> None:
+    v = Validator(shadow, load_object("004_sugar_box"))
+    if sized_for == "lift-drop":   # the squeeze as it was: sized for the weight along −z
+        derive = v.derive_targets
+        monkeypatch.setattr(v, "derive_targets",
+                            lambda scene, q, down=None, **_: derive(scene, q, down))
+    result = v.validate(SIX_DIR_GRASP, "six-dir")
+    assert bool(result.passed) is (sized_for == "six-dir"), (result.failure,
+                                                             result.displacement_m,
+                                                             result.rotation_rad)
