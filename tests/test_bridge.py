@@ -13,6 +13,7 @@ import time
 
 import numpy as np
 import pytest
+import zenoh
 
 from sim.paths import SHARED_ASSETS
 from teleop import keys
@@ -191,7 +192,11 @@ def _nan_joint(frame: HandFrame) -> bytes:
 def test_bad_input_is_counted_and_a_vanished_hand_holds(frames):
     rig = _Rig(frames, "t4", deterministic=True, view_enabled=False)
     try:
-        pub = rig.client.declare_publisher(rig.k.hands)
+        # BLOCK, as the replayer publishes: every sample of the burst below must arrive to be
+        # counted, and the default DROP discards samples when the send queue is full (this test
+        # failed once on a loaded machine)
+        pub = rig.client.declare_publisher(rig.k.hands,
+                                           congestion_control=zenoh.CongestionControl.BLOCK)
         t_end = time.perf_counter() + 5
         while not pub.matching_status.matching and time.perf_counter() < t_end:
             time.sleep(0.01)
@@ -204,7 +209,7 @@ def test_bad_input_is_counted_and_a_vanished_hand_holds(frames):
             pub.put(bad)
         for f in good[20:]:
             pub.put(encode(f))
-        assert rig.bridge.wait_idle(received=44)
+        assert rig.bridge.wait_idle(timeout_s=30.0, received=44), rig.bridge.status()["counts"]
         q_before = rig.bridge._q_target.copy()
         for k, f in enumerate(good[-5:]):
             pub.put(encode(dataclasses.replace(f, right=None, seq=10_000 + k)))
