@@ -13,6 +13,7 @@ index grid; a "middle" grid beside the index one, facing −y too, is in reach o
 from __future__ import annotations
 
 import dataclasses
+import itertools
 from types import SimpleNamespace
 
 import numpy as np
@@ -216,6 +217,25 @@ def test_reachable_fingers_are_all_used() -> None:
     res = generate(hand, cloud, ws, n=2, seed=0, time_budget_s=10, params=TOY_PARAMS)
     assert res.stopped == "done" and res.finger_sets == [("thumb", "index", "middle")]
     assert all(g.grasp.joints[4:6].tolist() == [0.5, 0.6] for g in res.grasps)
+
+
+def test_grasps_rejected_for_their_effort_do_not_drop_fingers() -> None:
+    """Three reachable fingers whose grasps the actuators mostly cannot hold (a toy effort: 3 of
+    every 4 above the limit): the first round keeps fewer than ``min_valid`` grasps (≈ 33 of
+    ≈ 130 found), but the fingers did reach the object, so none is dropped (fewer fingers
+    would hold even less). Counting only the kept grasps dropped the middle finger."""
+    hand, cloud, ws = _toy_hand(), _cube_cloud(), _toy_workspace(middle_reachable=True)
+    calls = itertools.count()
+
+    def effort(grasp: object) -> float:
+        return 0.5 if next(calls) % 4 == 3 else 2.0
+
+    params = dataclasses.replace(TOY_PARAMS, max_actuator_effort=1.0, min_valid=40)
+    res = generate(hand, cloud, ws, n=45, seed=0, time_budget_s=30, params=params, effort=effort)
+    assert res.stopped == "done" and len(res.grasps) == 45
+    assert res.stats["effort"] >= 2 * len(res.grasps)
+    assert res.finger_sets == [("thumb", "index", "middle")]
+    assert all(g.actuator_effort == 0.5 for g in res.grasps)
 
 
 # ------------------------------------------------------------------------------ closure relaxation

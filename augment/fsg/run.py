@@ -89,7 +89,7 @@ def run_rounds(sampler: Sampler, n: int, deadline: float,
     sets = [fingers]
     p = sampler.params
     while True:
-        round_start = len(sampler.accepted)
+        round_start, round_effort = len(sampler.accepted), sampler.stats["effort"]
         round_t0 = time.monotonic()
         done_outer = 0
         while done_outer < p.outer:
@@ -108,7 +108,10 @@ def run_rounds(sampler: Sampler, n: int, deadline: float,
             return "done", sets
         now = time.monotonic()
         found = len(sampler.accepted) - round_start
-        if (sampler.setup.finger_iteration and found < p.min_valid
+        # a grasp rejected for its effort was found: finger iteration drops fingers the object
+        # cannot be reached with, never because the load is heavy (fewer fingers hold less)
+        reached = found + sampler.stats["effort"] - round_effort
+        if (sampler.setup.finger_iteration and reached < p.min_valid
                 and len(fingers) > p.min_fingers):
             fingers = fingers[:-1]
             sets.append(fingers)
