@@ -12,8 +12,8 @@ gains (the Menagerie Shadow Hand's ≈ 1 N·m/rad servos give ≈ 1 N per finger
 little to lift a sugar box with a fingertip grasp), and a fixed larger depth crushes light objects
 out of a pinch. Each grasping contact i (one per hand body near the object) is given a desired
 normal force ``f_i = max(grip_safety · F·(1 + d/ρ) / (μ · n_contacts), min_grip_force_n)``
-(F: the load the protocol puts on the object — the weight m·g in a lift, the 1 N pushes of
-``dgb`` —, d: centre of mass to the contacts' centroid, ρ: the contacts' spread), so that the
+(F: the load the protocol puts on the object — the weight m·g in a lift, the largest push of
+``six-dir`` or ``dgb`` —, d: centre of mass to the contacts' centroid, ρ: their spread), so the
 friction of all contacts carries ``grip_safety`` times the load and its moment about the grasp.
 The load, the friction and the servo stiffness are the ones of the protocol the squeeze is for
 (:class:`sim.metrics.holding.HoldLoads`).
