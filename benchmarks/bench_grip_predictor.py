@@ -39,7 +39,7 @@ from sim.hand.model import Hand
 from sim.metrics.holding import HoldLoads, finger_contacts
 from sim.validate.config import ValidateConfig
 from sim.validate.loads import hold_loads
-from sim.validate.targets import squeeze_total_n
+from sim.validate.targets import largest_force_n, squeeze_total_n
 from sim.validate.validator import Validator
 from sim.world.objects import load_object
 
@@ -58,8 +58,7 @@ def squeeze_ratio(points: np.ndarray, hold: HoldLoads, cfg: ValidateConfig) -> f
     """The validator's total squeeze for the protocol's loads ``hold`` (its friction; the
     largest load force), over that force, for contacts at ``points`` (one per finger)."""
     total = squeeze_total_n(points, hold, cfg.common.grip_safety)
-    force_n = float(np.linalg.norm(np.asarray(hold.loads).reshape(-1, 6)[:, :3], axis=1).max())
-    return max(total, cfg.common.min_grip_force_n * len(points)) / force_n
+    return max(total, cfg.common.min_grip_force_n * len(points)) / largest_force_n(hold)
 
 
 def rows_of(path: Path, cfg: ValidateConfig) -> list[dict[str, object]]:

@@ -60,10 +60,11 @@ class FsgResult:
     (``shortfall``), ``stopped`` ("done", "time budget"), wall time, and counts summed over
     workers: candidates and where they were rejected (palm, table, no_match, contacts, depth,
     link, epsilon, duplicate, penetration, effort: actuators too weak for the loads), accepted
-    (``accepted_open`` of them without force
-    closure), ``relaxed`` (workers whose closure filter was relaxed), and per finger the k-d tree pairs with
-    opposed normals (``pairs_<finger>``) and those left after eq. 2 and the crossing rule
-    (``usable_<finger>``). ``finger_sets`` lists the finger sets finger iteration went through."""
+    (``accepted_open`` of them without force closure), ``relaxed`` (workers whose closure filter
+    was relaxed), and per finger the k-d tree pairs with opposed normals (``pairs_<finger>``) and
+    those left after eq. 2 and the crossing rule (``usable_<finger>``). ``finger_sets`` lists the
+    finger sets finger iteration went through. ``stopped`` is also ``"actuators too weak"``
+    (:data:`augment.fsg.run.TOO_WEAK`) when the effort filter rejected every grasp found."""
 
     grasps: list[FsgGrasp]
     requested: int

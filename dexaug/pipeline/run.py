@@ -79,8 +79,9 @@ def generate_grasps(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: Works
     ``augment`` (CLI, dashboard, benchmarks) generates through here."""
     exact = ScenePenetration.of(hand.name, obj.name) if link_penetration else None
     hold = effort = None
+    asset = obj if isinstance(obj, ObjectAsset) else None
     if hold_protocol is not None:
-        asset = obj if isinstance(obj, ObjectAsset) else load_object(obj.name)
+        asset = asset or load_object(obj.name)
         hold = hold_loads(asset, hold_protocol)
         effort = SceneEffort(hand.name, obj.name, hold_protocol)
     if workers > 1:
@@ -91,7 +92,7 @@ def generate_grasps(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: Works
         log.warning("%s (%.2f kg, %s): FSG stopped: its first %d grasps all need more than "
                     "%.3g× the actuators' force limits to hold it (max_actuator_effort); no "
                     "grasp this hand makes can (more fingers, a power grasp or a stronger hand "
-                    "are needed)", obj.name, load_object(obj.name).mass_kg, hold_protocol,
+                    "are needed)", obj.name, asset.mass_kg, hold_protocol,
                     res.stats.get("effort", 0),
                     (kwargs.get("params") or load_fsg_params(hand.config)).max_actuator_effort)
     elif effort is not None:

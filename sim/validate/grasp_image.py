@@ -1,10 +1,9 @@
 """An image of a closed grasp (:meth:`sim.validate.validator.Validator.render`): the report's
 gallery and the figures.
 
-The camera frames the
-bounding boxes of the object's geoms and of the hand geoms within :data:`FRAME_HAND_M` of it,
-so a small object is not lost beside a large hand and the hand near it is not cropped (the
-forearm may leave the frame).
+The camera frames the bounding boxes of the object's geoms and of the hand geoms within
+:data:`FRAME_HAND_M` of it, so a small object is not lost beside a large hand and the hand near
+it is not cropped (the forearm may leave the frame).
 """
 
 from __future__ import annotations

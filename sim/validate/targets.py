@@ -53,8 +53,8 @@ from sim.world.contacts import Contacts
 from sim.world.scene import Scene
 
 __all__ = ["GraspTargets", "finger_joint_mask", "grip_force_n", "joint_stiffness",
-           "least_grip_total_n", "loads_in_world", "servo_stiffness_from", "squeeze_total_n",
-           "targets_from_contacts", "weight_loads"]
+           "largest_force_n", "least_grip_total_n", "loads_in_world", "servo_stiffness_from",
+           "squeeze_total_n", "targets_from_contacts", "weight_loads"]
 
 # relative damping of the pseudo-inverses: the contact Jacobian's (m², as J Jᵀ) and the joint
 # stiffness's (times its largest eigenvalue; only makes singular directions harmless)
@@ -105,6 +105,12 @@ def loads_in_world(loads: HoldLoads, scene: Scene) -> HoldLoads:
                      loads.mu_torsion_m, loads.protocol)
 
 
+def largest_force_n(loads: HoldLoads) -> float:
+    """The largest force (newtons) among ``loads``: what a squeeze sized by the rule carries."""
+    return float(np.linalg.norm(np.asarray(loads.loads, dtype=float).reshape(-1, 6)[:, :3],
+                                axis=1).max())
+
+
 def grip_force_n(points: np.ndarray, loads: HoldLoads, common: CommonParams) -> float:
     """Desired normal force (newtons) per grasping contact, for contacts at ``points`` (n, 3).
 
@@ -126,9 +132,7 @@ def squeeze_total_n(points: np.ndarray, loads: HoldLoads, grip_safety: float) ->
     centroid = points.mean(axis=0)
     spread_m = max(float(np.sqrt(((points - centroid) ** 2).sum(axis=1).mean())), _MIN_LEVER_M)
     offset_m = float(np.linalg.norm(np.asarray(loads.com_m, dtype=float) - centroid))
-    force_n = float(np.linalg.norm(np.asarray(loads.loads, dtype=float).reshape(-1, 6)[:, :3],
-                                   axis=1).max())
-    return grip_safety * force_n * (1.0 + offset_m / spread_m) / loads.mu
+    return grip_safety * largest_force_n(loads) * (1.0 + offset_m / spread_m) / loads.mu
 
 
 def least_grip_total_n(points: np.ndarray, normals_in: np.ndarray, loads: HoldLoads,
@@ -200,7 +204,7 @@ def _stiffness_pinv(stiffness: np.ndarray) -> np.ndarray:
 
 def targets_from_contacts(scene: Scene, hand: Hand, q: np.ndarray, near: Contacts,
                           common: CommonParams, finger_mask: np.ndarray,
-                          loads: HoldLoads | None = None,
+                          loads: HoldLoads,
                           act_stiffness: np.ndarray | None = None) -> GraspTargets:
     """Pregrasp and squeeze joint vectors of the grasp placed in ``scene`` at joints ``q``,
     from its hand–object contacts and near misses ``near`` (distances in metres).
@@ -211,7 +215,7 @@ def targets_from_contacts(scene: Scene, hand: Hand, q: np.ndarray, near: Contact
     force f (module docstring): the larger of :func:`grip_force_n`'s rule and the least grip
     that holds ``loads`` at these contacts (:func:`least_grip_total_n`), split over them.
     ``loads`` (world frame, about the object's centre of mass): what the protocol asks the
-    grasp to hold; None: the scene's object's weight along −z with ``[common]`` friction.
+    grasp to hold (:func:`weight_loads`, :func:`loads_in_world`).
     ``act_stiffness``: see :func:`joint_stiffness`. No body near the object gives
     ``n_bodies_near = 0`` and ``q`` for both targets.
     """
@@ -233,8 +237,6 @@ def targets_from_contacts(scene: Scene, hand: Hand, q: np.ndarray, near: Contact
                             np.eye(len(rows)))
     pinv = jac.T @ solve
     pre = hand.clip(q + pinv @ (gaps - common.pregrasp_backoff_m))
-    if loads is None:
-        loads = weight_loads(scene.obj_mass_kg, d.xipos[scene.obj_body], common)
     force_n = grip_force_n(np.array(closest), loads, common)
     least_n = least_grip_total_n(np.array(closest), np.array(normals), loads, common.grip_safety)
     if np.isfinite(least_n):

@@ -61,7 +61,6 @@ BACKENDS = ("mujoco", "warp")
 BATCH_SIMS = 16
 
 
-
 class Validator:
     """Validates grasps of one hand on one object; owns one scene per protocol (built lazily)."""
 
@@ -151,14 +150,12 @@ class Validator:
         (:func:`sim.validate.loads.hold_loads`) with their friction; for ``dgb`` also the
         stiffness of its servos, read back from its compiled scene, where the squeeze runs.
         """
-        loads, stiffness = None, None
-        if sized_for in ("six-dir", "dgb"):
-            loads = loads_in_world(hold_loads(self.obj, sized_for, self.config), scene)
-        if sized_for == "dgb":
-            stiffness = servo_stiffness_from(self.scene("dgb"), scene)
-        elif down is not None:
+        if sized_for == "lift-drop":
             loads = weight_loads(scene.obj_mass_kg, scene.data.xipos[scene.obj_body],
                                  self.config.common, down)
+        else:   # hold_loads refuses an unknown protocol
+            loads = loads_in_world(hold_loads(self.obj, sized_for, self.config), scene)
+        stiffness = servo_stiffness_from(self.scene("dgb"), scene) if sized_for == "dgb" else None
         return targets_from_contacts(scene, self.hand, q, self._near_contacts(scene),
                                      self.config.common, self._finger_mask, loads, stiffness)
 
