@@ -7,9 +7,12 @@ compared grasp by grasp. The C reference runs on ``--workers`` processes (``vali
 1: one thread in this process). Warp runs the n grasps as n worlds; ``--worlds`` adds
 throughput rows at other world counts (the grasps repeated to fill them). Every Warp row is
 timed after a warm-up call on the same runner (kernels compiled, step graph captured), and
-says how much of its time the device loop took (upload, steps, download) against the host
-(the programs and ``mj_forward`` of each world's new state). ``--device cpu`` runs Warp's CPU
-backend (slow; for agreement on a machine without a GPU). Needs ``pip install mujoco-warp``.
+says how its time splits: the device loop (upload, steps, download), the host writing each
+advanced world's state back with ``mj_forward`` of it, the host starting grasps
+(``Validator.start``: placement, penetration, pregrasp and squeeze targets), and the rest (the
+programs between calls). ``--device cpu`` runs Warp's CPU backend (slow; for agreement on a
+machine without a GPU). Needs ``pip install mujoco-warp``; results of an H200 are in
+``benchmarks/measured/warp_h200/``.
 
     python benchmarks/bench_warp_agreement.py [--n 64] [--device cuda] [--protocol lift-drop]
         [--workers 1] [--worlds 4096,8192] [--json results.json]
@@ -53,20 +56,28 @@ def warp_row(v: Validator, grasps: list[Grasp], protocol: str, device: str, nwor
     """Warp's verdicts on ``grasps`` with ``nworld`` worlds, timed after a warm-up."""
     runner = WarpRunner(v.scene(protocol), nworld, device, capture=capture)
 
+    start_s = 0.0
+
     def start(g: Grasp, view: Scene) -> tuple[ValidationResult, Program | None]:
-        return v.start(g, protocol, scene=view)
+        nonlocal start_s
+        t = time.perf_counter()
+        try:
+            return v.start(g, protocol, scene=view)
+        finally:
+            start_s += time.perf_counter() - t
 
     t0 = time.perf_counter()
     validate_batched(runner, grasps[:min(nworld, 8)], start)
     warmup_s = time.perf_counter() - t0
     print(f"Warp, {nworld} worlds: warm-up (kernels loaded, graph captured) {warmup_s:.1f} s",
           flush=True)
-    runner.world_steps, runner.device_s = 0, 0.0
+    runner.world_steps, runner.device_s, runner.refresh_s, start_s = 0, 0.0, 0.0, 0.0
     t0 = time.perf_counter()
     out = validate_batched(runner, grasps, start)
     wall = time.perf_counter() - t0
     return out, {"worlds": nworld, "grasps": len(grasps), "warmup_s": warmup_s, "wall_s": wall,
                  "validations_per_s": len(grasps) / wall, "device_s": runner.device_s,
+                 "refresh_s": runner.refresh_s, "start_s": start_s,
                  "world_steps_per_s": runner.world_steps / max(runner.device_s, 1e-9),
                  "graph": runner.graph_captured}
 
@@ -106,9 +117,9 @@ def main() -> None:
           f"{same_reason}/{n} |")
     if pairs:
         print("disagreements (C -> Warp):", dict(pairs))
-    print("| worlds | grasps | validations/s | device loop share | world-steps/s (device loop) "
-          "| warm-up s | graph |")
-    print("| --- | --- | --- | --- | --- | --- | --- |")
+    print("| worlds | grasps | validations/s | device loop share | host: states back + mj_forward "
+          "| host: start (place, targets) | world-steps/s (device loop) | warm-up s | graph |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     rows = [row]
     extra = [(int(w), True) for w in args.worlds.split(",") if w]
     if args.eager:
@@ -119,7 +130,8 @@ def main() -> None:
                                  capture)[1])
         r = rows[-1]
         print(f"| {r['worlds']} | {r['grasps']} | {r['validations_per_s']:.1f} | "
-              f"{100 * r['device_s'] / r['wall_s']:.0f} % | {r['world_steps_per_s']:.0f} | "
+              f"{100 * r['device_s'] / r['wall_s']:.0f} % | {100 * r['refresh_s'] / r['wall_s']:.0f} % | "
+              f"{100 * r['start_s'] / r['wall_s']:.0f} % | {r['world_steps_per_s']:.0f} | "
               f"{r['warmup_s']:.1f} | {r['graph']} |", flush=True)
         if args.json:
             args.json.write_text(json.dumps({"object": args.object, "protocol": args.protocol,

@@ -106,9 +106,11 @@ class WarpRunner(ProgramRunner):
             self._k = wp.zeros(1, dtype=wp.int32)
             self._act = wp.array(np.asarray(scene.hand_act, np.int32), dtype=wp.int32)
         self._graph: Any = None
-        #: device work so far: world-steps launched, and seconds from upload to download
+        #: device work so far: world-steps launched, and seconds from upload to download; host
+        #: seconds spent writing the advanced worlds' states back and running their mj_forward
         self.world_steps = 0
         self.device_s = 0.0
+        self.refresh_s = 0.0
 
     @property
     def graph_captured(self) -> bool:
@@ -204,7 +206,8 @@ class WarpRunner(ProgramRunner):
             for _ in range(nstep):
                 step()
             out = {name: getattr(self.wd, name).numpy() for name in _STATE_OUT}
-        self.device_s += time.perf_counter() - t0
+        t1 = time.perf_counter()
+        self.device_s += t1 - t0
         self.world_steps += nstep * len(self.slots)
         m = self.scene.model
         for sim in ids:
@@ -215,3 +218,4 @@ class WarpRunner(ProgramRunner):
                 else:
                     getattr(d, name)[...] = rows[sim]
             mujoco.mj_forward(m, d)
+        self.refresh_s += time.perf_counter() - t1
