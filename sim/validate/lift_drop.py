@@ -125,9 +125,15 @@ def _release(scene: Scene, hand: Hand, p: LiftDropParams, targets: GraspTargets,
         touching = contacts_between(m, d, scene.hand_geom_mask, scene.obj_geom_mask).dist <= 0.0
         return fall_m >= p.drop_min_fall_m and not touching.any()
 
-    opening = max(round(0.5 * p.drop_time_s / m.opt.timestep), 0)
-    yield Advance(opening, gravity=GRAVITY_MPS2 * release_dir,
-                  ctrl_from=scene.ctrl_for(targets.squeeze), ctrl_to=scene.ctrl_for(hand.open_pose))
+    # the fingers first back off to the pregrasp (each contact 1 cm back along its normal: the
+    # grip let go where it was made), then open to the hand's open pose; straight from the
+    # squeeze to the open pose, the sweep carried some held objects into the hand (screwdrivers
+    # left lying on the index and middle fingers, 4–7 cm the wrong way)
+    backing = max(round(0.25 * p.drop_time_s / m.opt.timestep), 0)
+    yield Advance(backing, gravity=GRAVITY_MPS2 * release_dir,
+                  ctrl_from=scene.ctrl_for(targets.squeeze), ctrl_to=scene.ctrl_for(targets.pregrasp))
+    yield Advance(backing, ctrl_from=scene.ctrl_for(targets.pregrasp),
+                  ctrl_to=scene.ctrl_for(hand.open_pose))
     fall, elapsed_s = moved_out(), 0.5 * p.drop_time_s
     chunk = max(round(0.05 / m.opt.timestep), 1)
     # until the object has left; past drop_time_s only while the fingers are still opening
