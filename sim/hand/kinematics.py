@@ -58,17 +58,36 @@ class TreeKinematics:
         quat = np.zeros((batch, self.nbody, 4))
         quat[:, 0, 0] = 1.0
         for b in range(1, self.nbody):
-            p = self.parent[b]
-            xpos = pos[:, p] + rotate(quat[:, p], self.body_pos[b])
-            xquat = quat_mul(quat[:, p], self.body_quat[b])
-            for step in self.steps[b]:
-                angle = q[:, step.qadr] - step.qpos0
-                if step.hinge:
-                    xanchor = xpos + rotate(xquat, step.anchor)
-                    xquat = quat_mul(xquat, axis_angle_to_quat(step.axis, angle))
-                    xpos = xanchor - rotate(xquat, step.anchor)
-                else:
-                    xpos = xpos + rotate(xquat, step.axis) * angle[:, None]
-            pos[:, b] = xpos
-            quat[:, b] = quat_normalize(xquat)
+            pos[:, b], quat[:, b] = self._child_pose(b, pos[:, self.parent[b]],
+                                                     quat[:, self.parent[b]], q)
         return pos, quat
+
+    def body_pose(self, q: np.ndarray, body: int) -> tuple[np.ndarray, np.ndarray]:
+        """One body's position (B, 3) metres and quaternion wxyz (B, 4), the same numbers as
+        :meth:`body_poses` gives for it, from its chain of ancestors alone (placing a hand at
+        a palm pose needs the palm, a few bodies from the root, not all of them)."""
+        chain = []
+        while body > 0:
+            chain.append(body)
+            body = int(self.parent[body])
+        pos = np.zeros((q.shape[0], 3))
+        quat = np.zeros((q.shape[0], 4))
+        quat[:, 0] = 1.0
+        for b in reversed(chain):
+            pos, quat = self._child_pose(b, pos, quat, q)
+        return pos, quat
+
+    def _child_pose(self, b: int, parent_pos: np.ndarray, parent_quat: np.ndarray,
+                    q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Body ``b``'s world pose from its parent's: body offset, then each of its joints."""
+        xpos = parent_pos + rotate(parent_quat, self.body_pos[b])
+        xquat = quat_mul(parent_quat, self.body_quat[b])
+        for step in self.steps[b]:
+            angle = q[:, step.qadr] - step.qpos0
+            if step.hinge:
+                xanchor = xpos + rotate(xquat, step.anchor)
+                xquat = quat_mul(xquat, axis_angle_to_quat(step.axis, angle))
+                xpos = xanchor - rotate(xquat, step.anchor)
+            else:
+                xpos = xpos + rotate(xquat, step.axis) * angle[:, None]
+        return xpos, quat_normalize(xquat)

@@ -191,9 +191,9 @@ class Hand:
 
     def palm_pose(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """frame_palm in the base frame for joint vectors q: (B, 3), (B, 4) wxyz."""
-        pos, quat = self.body_poses(q)
-        b = self.palm_body_id
-        return pose_mul(pos[:, b], quat[:, b], self.config.palm.pos, self.config.palm.quat_wxyz)
+        qb, _ = self._batch(q)
+        pos, quat = self.kinematics.body_pose(qb, self.palm_body_id)
+        return pose_mul(pos, quat, self.config.palm.pos, self.config.palm.quat_wxyz)
 
     def fingertip_sites(self, q: np.ndarray, frame: str = "base") -> np.ndarray:
         """Pulp site positions (B, nfingers, 3) metres, in the base frame or frame_palm."""
