@@ -134,7 +134,7 @@ def _release(scene: Scene, hand: Hand, p: LiftDropParams, targets: GraspTargets,
                   ctrl_from=scene.ctrl_for(targets.squeeze), ctrl_to=scene.ctrl_for(targets.pregrasp))
     yield Advance(backing, ctrl_from=scene.ctrl_for(targets.pregrasp),
                   ctrl_to=scene.ctrl_for(hand.open_pose))
-    fall, elapsed_s = moved_out(), 0.5 * p.drop_time_s
+    fall, elapsed_s = moved_out(), 2 * backing * m.opt.timestep
     chunk = max(round(0.05 / m.opt.timestep), 1)
     # until the object has left; past drop_time_s only while the fingers are still opening
     # (a slow gripper), at most drop_max_time_s
