@@ -18,9 +18,12 @@ with the loads of the dataset's protocol, and compares with the stored verdicts:
   load: the weight, or a push; ``configs/validate.toml``;
   d, ρ from the per-finger contacts, as ``sim.validate.targets`` computes it) ≥ λ*;
 * the share of grasps whose contacts cannot hold the load at all (ratio = inf), and the
-  finger-count distribution of the passing grasps.
+  finger-count distribution of the passing grasps;
+* with ``--bins``, the pass rate of all the datasets' grasps by actuator effort: the
+  calibration behind ``[fsg] max_actuator_effort`` (configs/augment.toml). Calibrate on
+  objects outside the set you will judge the threshold on.
 
-    .venv/bin/python benchmarks/bench_grip_predictor.py DATASET.h5 [DATASET.h5 ...]
+    .venv/bin/python benchmarks/bench_grip_predictor.py DATASET.h5 [DATASET.h5 ...] [--bins]
 
 Prints one Markdown table, a row per dataset and object and one over all of them.
 """
@@ -29,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 from collections import Counter
+from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
@@ -105,9 +109,28 @@ def line(label: str, r: dict[str, np.ndarray]) -> str:
             f"{fingers} |")
 
 
+#: effort bin edges of ``--bins`` (fraction of the force limits; 1: the actuators' limit)
+EFFORT_BINS = (0.0, 0.1, 0.2, 0.25, 0.3, 0.4, 0.5, 0.75, 1.0)
+
+
+def effort_bins(effort: np.ndarray, passed: np.ndarray) -> list[str]:
+    """Markdown rows: grasps, passes and pass rate per actuator-effort bin of
+    :data:`EFFORT_BINS` (the last bin closed), pooled over every dataset given."""
+    rows = []
+    edges = EFFORT_BINS
+    for lo, hi in pairwise(edges):
+        inside = (effort >= lo) & ((effort < hi) if hi < edges[-1] else (effort <= hi))
+        rate = f"{passed[inside].mean():.1%}" if inside.any() else "–"
+        rows.append(f"| [{lo:g}, {hi:g}{']' if hi == edges[-1] else ')'} | {int(inside.sum())} | "
+                    f"{int(passed[inside].sum())} | {rate} |")
+    return rows
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("datasets", nargs="+", type=Path)
+    ap.add_argument("--bins", action="store_true",
+                    help="also the pooled pass rate by actuator effort (default: off)")
     args = ap.parse_args()
     cfg = ValidateConfig.load()
     rows = [r for path in args.datasets for r in rows_of(path, cfg)]
@@ -117,8 +140,11 @@ def main() -> None:
     for r in rows:
         print(line(f"{r['source']} / {r['object']} ({r['protocol']})", r))
     keys = ("ratio", "budget", "passed", "fingers", "epsilon", "effort")
-    print(line(f"all ({len({r['object'] for r in rows})} objects)",
-               {k: np.concatenate([r[k] for r in rows]) for k in keys}))
+    pooled = {k: np.concatenate([r[k] for r in rows]) for k in keys}
+    print(line(f"all ({len({r['object'] for r in rows})} objects)", pooled))
+    if args.bins:
+        print("\n| actuator effort | grasps | passed | pass rate |\n|---|---|---|---|")
+        print("\n".join(effort_bins(pooled["effort"], pooled["passed"])))
 
 
 if __name__ == "__main__":
