@@ -19,9 +19,10 @@ with the loads of the dataset's protocol, and compares with the stored verdicts:
   d, ρ from the per-finger contacts, as ``sim.validate.targets`` computes it) ≥ λ*;
 * the share of grasps whose contacts cannot hold the load at all (ratio = inf), and the
   finger-count distribution of the passing grasps;
-* with ``--bins``, the pass rate of all the datasets' grasps by actuator effort: the
-  calibration behind ``[fsg] max_actuator_effort`` (configs/augment.toml). Calibrate on
-  objects outside the set you will judge the threshold on.
+* with ``--bins``, the pass rate of all the datasets' grasps by actuator effort and a
+  logistic fit p(pass) = σ(a + b·effort) by maximum likelihood, with the effort at which it
+  crosses a few pass chances: the calibration behind ``[fsg] max_actuator_effort``
+  (configs/augment.toml). Calibrate on objects outside the set you will judge the limit on.
 
     .venv/bin/python benchmarks/bench_grip_predictor.py DATASET.h5 [DATASET.h5 ...] [--bins]
 
@@ -36,6 +37,7 @@ from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
+from scipy.optimize import minimize
 
 from augment import dataset
 from sim.grasp import Grasp
@@ -126,6 +128,19 @@ def effort_bins(effort: np.ndarray, passed: np.ndarray) -> list[str]:
     return rows
 
 
+def logistic_fit(effort: np.ndarray, passed: np.ndarray) -> tuple[float, float]:
+    """(a, b) of the maximum-likelihood fit p(pass) = σ(a + b·effort) over the finite efforts."""
+    ok = np.isfinite(effort)
+    e, y = effort[ok], passed[ok].astype(float)
+
+    def nll(w: np.ndarray) -> float:
+        z = w[0] + w[1] * e
+        return float(np.sum(np.logaddexp(0.0, z) - y * z))
+
+    a, b = minimize(nll, np.zeros(2)).x
+    return float(a), float(b)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("datasets", nargs="+", type=Path)
@@ -145,6 +160,10 @@ def main() -> None:
     if args.bins:
         print("\n| actuator effort | grasps | passed | pass rate |\n|---|---|---|---|")
         print("\n".join(effort_bins(pooled["effort"], pooled["passed"])))
+        a, b = logistic_fit(pooled["effort"], pooled["passed"])
+        cross = ", ".join(f"{p:g} at {(np.log(p / (1 - p)) - a) / b:.3f}"
+                          for p in (0.5, 0.3, 0.29, 0.2))
+        print(f"\nlogistic fit: p(pass) = σ({a:.2f} {b:+.2f}·effort); p crosses {cross}")
 
 
 if __name__ == "__main__":

@@ -71,8 +71,8 @@ WorkerOutput = tuple[list[FsgGrasp], dict[str, int], str, list[tuple[str, ...]]]
 
 #: stop reason of a search whose first :data:`TOO_WEAK_AFTER` grasps all needed more than
 #: ``max_actuator_effort``; 30 without one accepted is far beyond the share such grasps make of
-#: an object the hand can hold (a third of the authors' sugar-box demo's at the default 0.3:
-#: thirty in a row has odds ≈ 1e-14; README "Grasps that hold")
+#: an object the hand can hold (44 % of the authors' sugar-box demo's at the default 0.25:
+#: thirty in a row has odds ≈ 1e-11; README "Grasps that hold")
 TOO_WEAK = "actuators too weak"
 TOO_WEAK_AFTER = 30
 
