@@ -33,7 +33,7 @@ from sim.validate.stages import GraspStages
 from sim.world.contacts import contacts_between
 from sim.world.scene import Scene
 
-__all__ = ["DGB_DIRECTIONS", "dgb_drift", "dgb_penetration_m", "run_dgb"]
+__all__ = ["DGB_DIRECTIONS", "closing_drift", "dgb_drift", "dgb_penetration_m", "run_dgb"]
 
 DGB_DIRECTIONS = {"-x": (-1, 0, 0), "+x": (1, 0, 0), "-y": (0, -1, 0), "+y": (0, 1, 0),
                   "-z": (0, 0, -1), "+z": (0, 0, 1)}
@@ -63,6 +63,25 @@ def _stage(scene: Scene, p: DgbParams, q_from: np.ndarray, q_to: np.ndarray) -> 
         d.ctrl[scene.hand_act] = (1.0 - alpha) * c_from + alpha * c_to
         mujoco.mj_forward(m, d)
         mujoco.mj_step(m, d, nstep=p.steps_per_increment)
+
+
+def closing_drift(scene: Scene, p: DgbParams, palm_world: tuple[np.ndarray, np.ndarray],
+                  stages: GraspStages, idle_s: float = 0.5) -> dict[str, tuple[float, float]]:
+    """Where a grasp's drift comes from before any push: (metres, radians) from the object's
+    pose at the pregrasp, as the benchmark measures it, after the pregrasp → grasp stage
+    ("grasp"), after the grasp → squeeze stage ("squeeze") and after ``idle_s`` more seconds
+    with the servos at the squeeze and no force ("idle"). Penetration is not checked."""
+    m, d = scene.model, scene.data
+    scene.reset_with_grasp(*palm_world, stages.pregrasp)
+    pos0, quat0 = scene.object_pose()
+    out = {}
+    _stage(scene, p, stages.pregrasp, stages.grasp)
+    out["grasp"] = dgb_drift(pos0, quat0, *scene.object_pose())
+    _stage(scene, p, stages.grasp, stages.squeeze)
+    out["squeeze"] = dgb_drift(pos0, quat0, *scene.object_pose())
+    mujoco.mj_step(m, d, nstep=max(round(idle_s / m.opt.timestep), 0))
+    out["idle"] = dgb_drift(pos0, quat0, *scene.object_pose())
+    return out
 
 
 def run_dgb(scene: Scene, p: DgbParams, palm_world: tuple[np.ndarray, np.ndarray],
