@@ -82,3 +82,30 @@ def test_bad_stage_vectors_and_conventions_are_one_line_errors(reference) -> Non
         Grasp.from_arrays(g.palm_pos, g.palm_quat_wxyz, g.joints, squeeze=g.joints[:3])
     with pytest.raises(GraspInputError, match="squeeze convention: expected one of"):
         validate_many(hand.name, refs[0].object, [g], "dgb", workers=1, squeeze_convention="magic")
+
+
+def test_closing_drift_replays_the_benchmarks_own_closing(reference) -> None:
+    """``closing_drift`` (benchmarks/bench_dgb_drift.py) must show the drift the benchmark's
+    run has when its first push starts: same reset, same two stages, same numbers."""
+    from sim.validate.dgb import closing_drift, dgb_drift, run_dgb
+    from sim.validate.result import ValidationResult
+    from sim.validate.validator import Validator
+    from sim.world.objects import load_object
+
+    hand, refs = reference
+    for r in refs[:3]:
+        validator = Validator(hand, load_object(r.object))
+        stages = validator.stages(r.grasp, "bodex", sized_for="dgb")
+        scene, params = validator.scene("dgb"), validator.config.dgb
+        palm = validator.palm_world(r.grasp)
+        drift = closing_drift(scene, params, palm, stages)
+        scene.reset_with_grasp(*palm, stages.pregrasp)
+        start = scene.object_pose()
+        seen = []
+        result = ValidationResult(protocol="dgb", passed=False, failure=None, penetration_m=0.0)
+        def record(seen=seen, start=start, scene=scene) -> None:
+            seen.append(dgb_drift(*start, *scene.object_pose()))
+
+        run_dgb(scene, params, palm, stages, result, after_first_close=record)
+        assert seen and np.allclose(drift["squeeze"], seen[0], rtol=0, atol=1e-12), (drift, seen)
+        assert drift["grasp"] != drift["squeeze"]
