@@ -55,7 +55,6 @@ def replay(path: Path, n: int) -> list[dict[str, object]]:
                 failed = [k for k, ph in result.phases.items() if not ph.passed]
                 rows.append({"object": name, "convention": stages.made_by,
                              "passed": result.passed,
-                             "failure": result.failure,
                              "direction": failed[0] if failed else None,
                              **{f"{s}_mm": 1e3 * drift[s][0] for s in STAGES},
                              **{f"{s}_deg": float(np.degrees(drift[s][1])) for s in STAGES}})
@@ -63,10 +62,10 @@ def replay(path: Path, n: int) -> list[dict[str, object]]:
 
 
 def line(label: str, rows: list[dict[str, object]], limits: tuple[float, float]) -> str:
-    """One Markdown row for ``rows`` (one object and verdict); ``limits``: the benchmark's
-    (millimetres, degrees)."""
+    """One Markdown row for ``rows`` (one object and verdict, at least one grasp); ``limits``:
+    the benchmark's (millimetres, degrees)."""
     def med(key: str) -> str:
-        return f"{np.median([float(r[key]) for r in rows]):.1f}" if rows else "–"
+        return f"{np.median([float(r[key]) for r in rows]):.1f}"
 
     drift = " | ".join(f"{med(s + '_mm')} mm, {med(s + '_deg')}°" for s in STAGES)
     half = sum(float(r["squeeze_deg"]) >= 7.5 for r in rows)

@@ -119,11 +119,11 @@ def effort_bins(effort: np.ndarray, passed: np.ndarray) -> list[str]:
     """Markdown rows: grasps, passes and pass rate per actuator-effort bin of
     :data:`EFFORT_BINS` (the last bin closed), pooled over every dataset given."""
     rows = []
-    edges = EFFORT_BINS
-    for lo, hi in pairwise(edges):
-        inside = (effort >= lo) & ((effort < hi) if hi < edges[-1] else (effort <= hi))
+    last = EFFORT_BINS[-1]
+    for lo, hi in pairwise(EFFORT_BINS):
+        inside = (effort >= lo) & ((effort < hi) if hi < last else (effort <= hi))
         rate = f"{passed[inside].mean():.1%}" if inside.any() else "–"
-        rows.append(f"| [{lo:g}, {hi:g}{']' if hi == edges[-1] else ')'} | {int(inside.sum())} | "
+        rows.append(f"| [{lo:g}, {hi:g}{']' if hi == last else ')'} | {int(inside.sum())} | "
                     f"{int(passed[inside].sum())} | {rate} |")
     return rows
 

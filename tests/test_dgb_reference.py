@@ -103,6 +103,7 @@ def test_closing_drift_replays_the_benchmarks_own_closing(reference) -> None:
         start = scene.object_pose()
         seen = []
         result = ValidationResult(protocol="dgb", passed=False, failure=None, penetration_m=0.0)
+
         def record(seen=seen, start=start, scene=scene) -> None:
             seen.append(dgb_drift(*start, *scene.object_pose()))
 

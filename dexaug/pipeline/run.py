@@ -91,8 +91,8 @@ def generate_grasps(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: Works
     if res.stopped == TOO_WEAK:
         log.warning("%s (%.2f kg, %s): FSG stopped: its first %d grasps all need more than "
                     "%.3g× the actuators' force limits to hold it (max_actuator_effort; above "
-                    "it grasps seldom hold in simulation); this hand's fingertip grasps will not "
-                    "(more fingers, a power grasp or a stronger hand are needed)",
+                    "it grasps seldom hold in simulation); this hand's fingertip grasps are unlikely "
+                    "to (more fingers, a power grasp or a stronger hand are needed)",
                     obj.name, asset.mass_kg, hold_protocol,
                     res.stats.get("effort", 0),
                     (kwargs.get("params") or load_fsg_params(hand.config)).max_actuator_effort)
