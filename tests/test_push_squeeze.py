@@ -12,6 +12,8 @@ validation").
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -52,6 +54,19 @@ SUGAR_BOX_GRASP = Grasp(
               0.47157292519943295, 0.76897, 0.76545, 0.17259292519943295, -0.02854707480056706,
               0.2659135374002835, 0.7540464625997165, 0.7506964625997165, 0.2233235374002835,
               0.8386535374002835, 0.19558292519943293, 0.27226353740028353,
+              0.06737707480056704]))
+
+#: a grasp of the same augmentation with hand bodies 5–10 mm from the box: squeezed with the
+#: grasp's contacts only it passes the benchmark (6°, 12 mm); with every body within 1 cm
+#: pressed in as well, the squeeze turns the free box 36° (measured 2026-12-04)
+SPARE_LINKS_GRASP = Grasp(
+    np.array([-0.04544526889986169, 0.0968121488050488, 0.09550830562228337]),
+    np.array([0.23613719860086557, 0.6751188896017167, -0.07238352346365994, 0.6951361980726272]),
+    np.array([0.0, 0.0, 0.01778353740028353, 0.29652292519943296, 0.82515, 0.82221, 0.15476,
+              0.45010292519943296, 0.6886935374002835, 0.6846535374002836,
+              -0.030937074800567066, 0.3843064625997165, 0.76897, 0.76545, 0.08532646259971648,
+              -0.028547074800567063, 0.35318, 0.66678, 0.66343, 0.39785646259971646,
+              1.1004529251994328, -0.06621646259971647, 0.18499707480056707,
               0.06737707480056704]))
 
 
@@ -139,3 +154,27 @@ def test_six_dir_squeezes_for_its_pushes(shadow, monkeypatch, sized_for: str) ->
     assert bool(result.passed) is (sized_for == "six-dir"), (result.failure,
                                                              result.displacement_m,
                                                              result.rotation_rad)
+
+
+@needs_ycb
+@pytest.mark.parametrize("search", ["dgb", "common"])
+def test_the_benchmarks_squeeze_presses_only_the_grasps_contacts(shadow, search: str) -> None:
+    """``[dgb] contact_search_m`` (5 mm) picks the bodies the benchmark's squeeze presses; the
+    wider ``[common]`` one (1 cm) also pulls spare links onto the free box and turns it out of
+    the benchmark's 15°."""
+    cfg = ValidateConfig.load()
+    assert cfg.dgb.contact_search_m < cfg.common.contact_search_m
+    if search == "common":
+        cfg = dataclasses.replace(cfg, dgb=dataclasses.replace(
+            cfg.dgb, contact_search_m=cfg.common.contact_search_m))
+    v = Validator(shadow, load_object("004_sugar_box"), cfg)
+    scene = v.scene("lift-drop")
+    v._place(scene, SPARE_LINKS_GRASP, SPARE_LINKS_GRASP.joints)
+    near = v._near_contacts(scene)
+    within = {int(b) for b, dist in zip(near.body_a, near.dist, strict=True)
+              if dist <= cfg.dgb.contact_search_m}
+    for_dgb = v.derive_targets(scene, SPARE_LINKS_GRASP.joints, sized_for="dgb")
+    assert for_dgb.n_bodies_near == len(within)
+    assert (len(within) < len(set(near.body_a.tolist()))) is (search == "dgb")
+    result = v.validate(SPARE_LINKS_GRASP, "dgb", squeeze_convention="dexaug")
+    assert bool(result.passed) is (search == "dgb"), np.degrees(result.rotation_rad)

@@ -88,6 +88,7 @@ class DgbParams:
     noslip_iterations: int
     solver_iterations: int
     max_penetration_m: float
+    contact_search_m: float
     stage_increments: int
     steps_per_increment: int
     force_per_kg: float
@@ -113,9 +114,9 @@ def _load_dgb(sec: Section) -> DgbParams:
     sec.reject_unknown({"object_mass_kg", "friction", "solref", "solimp", "servo_kp",
                         "servo_force_limit", "weld_solref", "timestep_s", "impratio",
                         "noslip_iterations", "solver_iterations", "max_penetration_m",
-                        "stage_increments", "steps_per_increment", "force_per_kg", "push_time_s",
-                        "check_every_steps", "max_displacement_m", "max_rotation_deg",
-                        "squeeze_convention"})
+                        "contact_search_m", "stage_increments", "steps_per_increment",
+                        "force_per_kg", "push_time_s", "check_every_steps",
+                        "max_displacement_m", "max_rotation_deg", "squeeze_convention"})
     mass = sec.data.get("object_mass_kg")
     if mass == "real":
         mass_kg = None
@@ -133,6 +134,7 @@ def _load_dgb(sec: Section) -> DgbParams:
         noslip_iterations=sec.int("noslip_iterations", min=0),
         solver_iterations=sec.int("solver_iterations", min=1),
         max_penetration_m=sec.float("max_penetration_m", min=0.0),
+        contact_search_m=sec.float("contact_search_m", min=0.0, max=0.05),
         stage_increments=sec.int("stage_increments", min=1),
         steps_per_increment=sec.int("steps_per_increment", min=1),
         force_per_kg=sec.float("force_per_kg", min=0.0), push_time_s=sec.float("push_time_s", min=0.0),

@@ -123,11 +123,11 @@ class Validator:
         return contacts_between(scene.model, scene.data, scene.hand_geom_mask, scene.obj_geom_mask,
                                 with_force=with_force)
 
-    def _near_contacts(self, scene: Scene) -> Contacts:
-        """Hand–object contacts and near misses (distance ≤ ``contact_search_m``) of the current
-        placement: object geoms get that margin for one collision pass, then it is restored."""
+    def _near_contacts(self, scene: Scene, search_m: float | None = None) -> Contacts:
+        """Hand–object contacts and near misses within ``search_m`` (default ``[common]
+        contact_search_m``): object geoms get that margin for one collision pass, then no more."""
         m, d = scene.model, scene.data
-        search_m = self.config.common.contact_search_m
+        search_m = self.config.common.contact_search_m if search_m is None else search_m
         saved = m.geom_margin.copy()
         m.geom_margin[scene.obj_geom_mask] = search_m
         mujoco.mj_collision(m, d)
@@ -148,16 +148,20 @@ class Validator:
         weight of the scene's object pulling along ``down`` (world unit vector; None: −z),
         ``[common]`` friction; ``six-dir`` and ``dgb`` — their six pushes
         (:func:`sim.validate.loads.hold_loads`) with their friction; for ``dgb`` also the
-        stiffness of its servos, read back from its compiled scene, where the squeeze runs.
+        stiffness of its servos, read back from its compiled scene, where the squeeze runs, and
+        only the hand bodies within ``[dgb] contact_search_m`` (the benchmark counts every
+        motion the squeeze gives the object as drift, so it presses the grasp's contacts only).
         """
         if sized_for == "lift-drop":
             loads = weight_loads(scene.obj_mass_kg, scene.data.xipos[scene.obj_body],
                                  self.config.common, down)
         else:   # hold_loads refuses an unknown protocol
             loads = loads_in_world(hold_loads(self.obj, sized_for, self.config), scene)
-        stiffness = servo_stiffness_from(self.scene("dgb"), scene) if sized_for == "dgb" else None
-        return targets_from_contacts(scene, self.hand, q, self._near_contacts(scene),
-                                     self.config.common, self._finger_mask, loads, stiffness)
+        dgb = sized_for == "dgb"
+        near = self._near_contacts(scene, self.config.dgb.contact_search_m if dgb else None)
+        return targets_from_contacts(scene, self.hand, q, near, self.config.common,
+                                     self._finger_mask, loads,
+                                     servo_stiffness_from(self.scene("dgb"), scene) if dgb else None)
 
     def stages(self, grasp: Grasp, convention: str | None = None, *,
                sized_for: str = "lift-drop") -> GraspStages:
