@@ -31,3 +31,12 @@ def shadow():
     if not _menagerie_available():
         pytest.skip("no Menagerie models")
     return Hand.load("shadow_right")
+
+
+def without_grip_boost(config):
+    """``config`` (a ValidateConfig) with the squeeze's grip boost off (``max_grip_safety`` =
+    ``grip_safety``): for tests of how the grip is sized before the boost scales it."""
+    import dataclasses
+
+    return dataclasses.replace(config, common=dataclasses.replace(
+        config.common, max_grip_safety=config.common.grip_safety))

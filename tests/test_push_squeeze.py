@@ -25,7 +25,7 @@ from sim.validate.result import ValidationResult
 from sim.validate.targets import least_grip_total_n, servo_stiffness_from
 from sim.validate.validator import Validator
 from sim.world.objects import load_object
-from tests.conftest import needs_ycb
+from tests.conftest import needs_ycb, without_grip_boost
 
 #: a grasp of the same augmentation that holds six-dir's pushes with the squeeze sized for them
 #: (5 mm, 6°) and turns 20° out of it with the one sized for the weight
@@ -113,7 +113,7 @@ def test_dgb_stages_use_the_benchmarks_servo_stiffness_read_from_its_model(shado
 
 @needs_ycb
 def test_a_dice_pinch_is_squeezed_for_the_benchmarks_pushes_not_its_weight(shadow) -> None:
-    cfg = ValidateConfig.load()
+    cfg = without_grip_boost(ValidateConfig.load())   # the grip as sized, before the boost
     dice = load_object("062_dice")
     v = Validator(shadow, dice, cfg)
     scene = v.scene("lift-drop")
@@ -133,7 +133,8 @@ def test_a_dice_pinch_is_squeezed_for_the_benchmarks_pushes_not_its_weight(shado
 @pytest.mark.parametrize("sized_for", ["dgb", "lift-drop"])
 def test_a_sugar_box_grasp_holds_the_benchmark_only_when_squeezed_for_it(shadow,
                                                                          sized_for: str) -> None:
-    v = Validator(shadow, load_object("004_sugar_box"))
+    # the grip as sized for each protocol's loads, before the headroom boost scales it
+    v = Validator(shadow, load_object("004_sugar_box"), without_grip_boost(ValidateConfig.load()))
     stages = v.stages(SUGAR_BOX_GRASP, "dexaug", sized_for=sized_for)
     result = ValidationResult("dgb", False, None, 0.0)
     run_dgb(v.scene("dgb"), v.config.dgb, v.palm_world(SUGAR_BOX_GRASP), stages, result)
@@ -145,7 +146,8 @@ def test_a_sugar_box_grasp_holds_the_benchmark_only_when_squeezed_for_it(shadow,
 @needs_ycb
 @pytest.mark.parametrize("sized_for", ["six-dir", "lift-drop"])
 def test_six_dir_squeezes_for_its_pushes(shadow, monkeypatch, sized_for: str) -> None:
-    v = Validator(shadow, load_object("004_sugar_box"))
+    # the grip as sized for each protocol's loads, before the headroom boost scales it
+    v = Validator(shadow, load_object("004_sugar_box"), without_grip_boost(ValidateConfig.load()))
     if sized_for == "lift-drop":   # the squeeze as it was: sized for the weight along −z
         derive = v.derive_targets
         monkeypatch.setattr(v, "derive_targets",

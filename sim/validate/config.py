@@ -39,6 +39,8 @@ class CommonParams:
     pregrasp_backoff_m: float
     squeeze_depth_m: float
     grip_safety: float
+    max_grip_safety: float
+    servo_headroom: float
     min_grip_force_n: float
     squeeze_forces: str
     close_time_s: float
@@ -165,7 +167,8 @@ class ValidateConfig:
         root.reject_unknown({"common", "lift_drop", "six_dir", "dgb"})
         c = root.section("common")
         c.reject_unknown({"max_penetration_m", "contact_search_m", "pregrasp_backoff_m",
-                          "squeeze_depth_m", "grip_safety", "min_grip_force_n", "squeeze_forces",
+                          "squeeze_depth_m", "grip_safety", "max_grip_safety", "servo_headroom",
+                          "min_grip_force_n", "squeeze_forces",
                           "close_time_s",
                           "settle_time_s", "pin_while_closing", "servo_kp_scale", "friction",
                           "solref", "solimp", "gws_mu"})
@@ -176,6 +179,8 @@ class ValidateConfig:
             pregrasp_backoff_m=c.float("pregrasp_backoff_m", **pos),
             squeeze_depth_m=c.float("squeeze_depth_m", **pos),
             grip_safety=c.float("grip_safety", **pos),
+            max_grip_safety=c.float("max_grip_safety", min=c.float("grip_safety", **pos)),
+            servo_headroom=c.float("servo_headroom", min=1e-6, max=1.0),
             min_grip_force_n=c.float("min_grip_force_n", **pos),
             squeeze_forces=_choice(c, "squeeze_forces", SQUEEZE_FORCES),
             close_time_s=c.float("close_time_s", min=1e-3),
@@ -208,3 +213,4 @@ class ValidateConfig:
             max_displacement_m=sd.float("max_displacement_m", **pos),
             max_rotation_rad=np.deg2rad(sd.float("max_rotation_deg", min=0.0, max=180.0)))
         return cls(common, lift, six, _load_dgb(root.section("dgb")))
+

@@ -52,9 +52,10 @@ from sim.validate.effort import closest_per_body
 from sim.world.contacts import Contacts
 from sim.world.scene import Scene
 
-__all__ = ["GraspTargets", "finger_joint_mask", "grip_force_n", "joint_stiffness",
-           "largest_force_n", "least_grip_total_n", "loads_in_world", "servo_stiffness_from",
-           "squeeze_total_n", "targets_from_contacts", "weight_loads"]
+__all__ = ["GraspTargets", "finger_joint_mask", "grip_boost", "grip_force_n", "joint_stiffness",
+           "largest_force_n", "least_grip_total_n", "loads_in_world", "servo_force_limits",
+           "servo_limits_from", "servo_stiffness_from", "squeeze_total_n",
+           "targets_from_contacts", "weight_loads"]
 
 # relative damping of the pseudo-inverses: the contact Jacobian's (m², as J Jᵀ) and the joint
 # stiffness's (times its largest eigenvalue; only makes singular directions harmless)
@@ -157,6 +158,20 @@ def least_grip_total_n(points: np.ndarray, normals_in: np.ndarray, loads: HoldLo
     return grip_safety * max(finite) if finite else float("inf")
 
 
+def _servo_arm(scene: Scene, finger_mask: np.ndarray,
+               act_stiffness: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """The hand actuators' moment arms over the finger joints (n_act × nq, zero outside
+    ``finger_mask``) and each actuator's position stiffness k (see :func:`joint_stiffness`)."""
+    m, d = scene.model, scene.data
+    moment = np.zeros((m.nu, m.nv))
+    mujoco.mju_sparse2dense(moment, d.actuator_moment, d.moment_rownnz, d.moment_rowadr,
+                            d.moment_colind)
+    acts = scene.hand_act
+    k = (np.where(scene.position_servos(), np.maximum(-m.actuator_biasprm[acts, 1], 0.0), 0.0)
+         if act_stiffness is None else np.asarray(act_stiffness, dtype=float))
+    return moment[np.ix_(acts, scene.hand_dadr)] * finger_mask, k
+
+
 def joint_stiffness(scene: Scene, finger_mask: np.ndarray,
                     act_stiffness: np.ndarray | None = None) -> np.ndarray:
     """Joint-space stiffness (nq × nq over the hand's joints; N·m/rad for hinges) of the
@@ -171,15 +186,26 @@ def joint_stiffness(scene: Scene, finger_mask: np.ndarray,
     another scene with the same actuators (the ``dgb`` protocol's kp 5 on every servo). Needs
     ``mj_forward`` (or ``mj_fwdPosition``) to have run.
     """
-    m, d = scene.model, scene.data
-    moment = np.zeros((m.nu, m.nv))
-    mujoco.mju_sparse2dense(moment, d.actuator_moment, d.moment_rownnz, d.moment_rowadr,
-                            d.moment_colind)
-    acts = scene.hand_act
-    k = (np.where(scene.position_servos(), np.maximum(-m.actuator_biasprm[acts, 1], 0.0), 0.0)
-         if act_stiffness is None else np.asarray(act_stiffness, dtype=float))
-    arm = moment[np.ix_(acts, scene.hand_dadr)] * finger_mask
+    arm, k = _servo_arm(scene, finger_mask, act_stiffness)
     return arm.T @ (k[:, None] * arm)
+
+
+def servo_force_limits(scene: Scene) -> np.ndarray:
+    """Per hand actuator of ``scene``, its force limit (the upper ``forcerange``; N or N·m),
+    ``inf`` where the actuator is not force-limited."""
+    m = scene.model
+    acts = scene.hand_act
+    return np.where(m.actuator_forcelimited[acts].astype(bool), m.actuator_forcerange[acts, 1],
+                    np.inf)
+
+
+def _same_named(source: Scene, scene: Scene, values: np.ndarray, missing: float) -> np.ndarray:
+    """``values`` (per hand actuator of ``source``) re-ordered onto ``scene``'s hand actuators
+    by actuator name; ``missing`` where ``source`` has no actuator of that name."""
+    names = [source.model.actuator(int(a)).name for a in source.hand_act]
+    by_name = dict(zip(names, np.asarray(values, dtype=float).tolist(), strict=True))
+    return np.array([by_name.get(scene.model.actuator(int(a)).name, missing)
+                     for a in scene.hand_act])
 
 
 def servo_stiffness_from(source: Scene, scene: Scene) -> np.ndarray:
@@ -189,8 +215,39 @@ def servo_stiffness_from(source: Scene, scene: Scene) -> np.ndarray:
     m = source.model
     kp = np.where(source.position_servos(),
                   np.maximum(-m.actuator_biasprm[source.hand_act, 1], 0.0), 0.0)
-    by_name = {m.actuator(int(a)).name: float(k) for a, k in zip(source.hand_act, kp, strict=True)}
-    return np.array([by_name.get(scene.model.actuator(int(a)).name, 0.0) for a in scene.hand_act])
+    return _same_named(source, scene, kp, 0.0)
+
+
+def servo_limits_from(source: Scene, scene: Scene) -> np.ndarray:
+    """Per hand actuator of ``scene``, the force limit of its same-named actuator in
+    ``source`` (:func:`servo_force_limits`; ``inf`` where ``source`` has none)."""
+    return _same_named(source, scene, servo_force_limits(source), np.inf)
+
+
+def grip_boost(servo_forces: np.ndarray, limits: np.ndarray, common: CommonParams) -> float:
+    """How much to scale a squeeze's grip up (1 to ``max_grip_safety / grip_safety``): as far
+    as every servo's squeeze force (``servo_forces``, per hand actuator, in the units of its
+    ``limits``) stays within ``servo_headroom`` of its limit.
+
+    Why: a grip of ``grip_safety`` times the least that holds the load is realised only
+    approximately — a position servo presses by its stiffness times a millimetre-scale
+    placement error, about as much as the whole grip of a 70 g screwdriver — so light grasps
+    want more margin, while a larger margin for every grasp saturates the servos of heavy ones
+    (grip_safety 3: sugar-box failures with a servo at its limit 3 → 32 of 55). Measured in the
+    README ("Grasps that hold"). Servos without a force limit have no headroom to measure, so a
+    hand with none (the Menagerie Allegro and LEAP) keeps ``grip_safety`` (boosted to the cap,
+    the LEAP's fingertip grasps of the nine calibration objects fell from 157 to 131 of 360).
+    """
+    limits = np.asarray(limits, dtype=float)
+    limited = np.isfinite(limits)
+    if not limited.any():
+        return 1.0
+    most = common.max_grip_safety / common.grip_safety
+    use = np.abs(np.asarray(servo_forces, dtype=float)[limited]) / limits[limited]
+    worst = float(use.max())
+    if worst <= 0.0:
+        return most
+    return float(np.clip(common.servo_headroom / worst, 1.0, most))
 
 
 def _stiffness_pinv(stiffness: np.ndarray) -> np.ndarray:
@@ -205,7 +262,8 @@ def _stiffness_pinv(stiffness: np.ndarray) -> np.ndarray:
 def targets_from_contacts(scene: Scene, hand: Hand, q: np.ndarray, near: Contacts,
                           common: CommonParams, finger_mask: np.ndarray,
                           loads: HoldLoads,
-                          act_stiffness: np.ndarray | None = None) -> GraspTargets:
+                          act_stiffness: np.ndarray | None = None,
+                          act_limits: np.ndarray | None = None) -> GraspTargets:
     """Pregrasp and squeeze joint vectors of the grasp placed in ``scene`` at joints ``q``,
     from its hand–object contacts and near misses ``near`` (distances in metres).
 
@@ -216,6 +274,9 @@ def targets_from_contacts(scene: Scene, hand: Hand, q: np.ndarray, near: Contact
     that holds ``loads`` at these contacts (:func:`least_grip_total_n`), split over them.
     ``loads`` (world frame, about the object's centre of mass): what the protocol asks the
     grasp to hold (:func:`weight_loads`, :func:`loads_in_world`).
+    The grip is then scaled up by :func:`grip_boost` as far as the servos' squeeze forces
+    ``k·M·Δq`` stay within ``servo_headroom`` of their limits (``act_limits``, per hand
+    actuator; default the scene's own forceranges).
     ``act_stiffness``: see :func:`joint_stiffness`. No body near the object gives
     ``n_bodies_near = 0`` and ``q`` for both targets.
     """
@@ -248,7 +309,9 @@ def targets_from_contacts(scene: Scene, hand: Hand, q: np.ndarray, near: Contact
         forces = np.full(len(rows), force_n)
     # joint torques that press every contact with its force (normals point into the object),
     # and the servo deflection that produces them
-    torque = jac.T @ forces
-    deflection = _stiffness_pinv(joint_stiffness(scene, finger_mask, act_stiffness)) @ torque
-    squeeze = hand.clip(q + pinv @ (gaps + common.squeeze_depth_m) + deflection)
-    return GraspTargets(pre, squeeze, len(rows), force_n)
+    arm, k = _servo_arm(scene, finger_mask, act_stiffness)
+    deflection = _stiffness_pinv(arm.T @ (k[:, None] * arm)) @ (jac.T @ forces)
+    limits = servo_force_limits(scene) if act_limits is None else act_limits
+    boost = grip_boost(k * (arm @ deflection), limits, common)
+    squeeze = hand.clip(q + pinv @ (gaps + common.squeeze_depth_m) + boost * deflection)
+    return GraspTargets(pre, squeeze, len(rows), boost * force_n)

@@ -43,6 +43,7 @@ from sim.validate.targets import (
     GraspTargets,
     finger_joint_mask,
     loads_in_world,
+    servo_limits_from,
     servo_stiffness_from,
     targets_from_contacts,
     weight_loads,
@@ -116,8 +117,7 @@ class Validator:
     @staticmethod
     def palm_world(grasp: Grasp) -> tuple[np.ndarray, np.ndarray]:
         """frame_palm of ``grasp`` in the world (metres, wxyz), the object being at home."""
-        return pose_mul(OBJECT_HOME, np.array([1.0, 0.0, 0.0, 0.0]), grasp.palm_pos,
-                        grasp.palm_quat_wxyz)
+        return pose_mul(OBJECT_HOME, np.array([1.0, 0.0, 0.0, 0.0]), grasp.palm_pos, grasp.palm_quat_wxyz)
 
     def _hand_object_contacts(self, scene: Scene, with_force: bool = False) -> Contacts:
         return contacts_between(scene.model, scene.data, scene.hand_geom_mask, scene.obj_geom_mask,
@@ -148,20 +148,19 @@ class Validator:
         weight of the scene's object pulling along ``down`` (world unit vector; None: −z),
         ``[common]`` friction; ``six-dir`` and ``dgb`` — their six pushes
         (:func:`sim.validate.loads.hold_loads`) with their friction; for ``dgb`` also the
-        stiffness of its servos, read back from its compiled scene, where the squeeze runs, and
-        only the hand bodies within ``[dgb] contact_search_m`` (the benchmark counts every
-        motion the squeeze gives the object as drift, so it presses the grasp's contacts only).
-        """
+        stiffness and force limits of its servos, read back from its compiled scene, and only
+        the bodies within ``[dgb] contact_search_m`` (it counts every motion as drift)."""
         if sized_for == "lift-drop":
             loads = weight_loads(scene.obj_mass_kg, scene.data.xipos[scene.obj_body],
                                  self.config.common, down)
         else:   # hold_loads refuses an unknown protocol
             loads = loads_in_world(hold_loads(self.obj, sized_for, self.config), scene)
-        dgb = sized_for == "dgb"
-        near = self._near_contacts(scene, self.config.dgb.contact_search_m if dgb else None)
-        return targets_from_contacts(scene, self.hand, q, near, self.config.common,
-                                     self._finger_mask, loads,
-                                     servo_stiffness_from(self.scene("dgb"), scene) if dgb else None)
+        dgb = self.scene("dgb") if sized_for == "dgb" else None
+        near = self._near_contacts(scene, None if dgb is None else self.config.dgb.contact_search_m)
+        servos = {} if dgb is None else {"act_stiffness": servo_stiffness_from(dgb, scene),
+                                         "act_limits": servo_limits_from(dgb, scene)}
+        return targets_from_contacts(scene, self.hand, q, near, self.config.common, self._finger_mask,
+                                     loads, **servos)
 
     def stages(self, grasp: Grasp, convention: str | None = None, *,
                sized_for: str = "lift-drop") -> GraspStages:
