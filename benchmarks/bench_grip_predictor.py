@@ -13,9 +13,10 @@ with the loads of the dataset's protocol, and compares with the stored verdicts:
   information), for the effort, the grip ratio and the GWS ε the paper ranks by (negated);
 * **effort > 1**: the share of grasps the actuators cannot hold the load with, and how many
   of those passed;
-* **precision / recall** of the rule "holds when the squeeze the validator applies is at least
-  the least grip": total squeeze ``grip_safety · F · (1 + d/ρ) / μ`` (F the protocol's largest
-  load: the weight, or a push; ``configs/validate.toml``;
+* **precision / recall** of the rule "holds when the squeeze the validator sizes (before its
+  headroom boost) is at least the least grip": total squeeze
+  ``grip_safety · F · (1 + d/ρ) / μ`` (F the protocol's largest load: the weight, or a push;
+  ``configs/validate.toml``;
   d, ρ from the per-finger contacts, as ``sim.validate.targets`` computes it) ≥ λ*;
 * the share of grasps whose contacts cannot hold the load at all (ratio = inf), and the
   finger-count distribution of the passing grasps;

@@ -12,6 +12,8 @@ calibrated on nine objects outside every acceptance set (README "Grasps that hol
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -54,6 +56,9 @@ def test_the_boost_fills_the_headroom_of_the_most_loaded_servo(config) -> None:
     assert grip_boost(np.array([0.9, -2.0, 0.0]), limits, c) == 1.0   # at a limit: never less
     # no servo with a force limit (the Menagerie Allegro, LEAP): no headroom known, no boost
     assert grip_boost(np.array([0.1, 0.2]), np.array([np.inf, np.inf]), c) == 1.0
+    # no grip to scale (a test's force floor alone)
+    unsized = dataclasses.replace(c, grip_safety=0.0)
+    assert grip_boost(np.zeros(3), limits, unsized) == 1.0
 
 def test_a_config_whose_cap_is_below_grip_safety_is_refused(tmp_path) -> None:
     text = VALIDATE_TOML.read_text().replace("max_grip_safety = ", "max_grip_safety = 0.5 #")

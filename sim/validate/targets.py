@@ -35,6 +35,11 @@ actuator's position stiffness k (``−biasprm[1]`` of an affine-bias actuator: t
 of length error at a fixed control). ``K_q⁺`` is a damped pseudo-inverse because coupled tendon
 joints (one actuator for two joints) make K_q singular. Actuator force limits saturate in the
 simulation, as on a real hand. Both protocols close onto the same targets.
+
+Last, the grip is scaled up (:func:`grip_boost`, at most ``max_grip_safety / grip_safety``) as
+far as every force-limited finger servo's squeeze force ``k·M·Δq`` stays within
+``servo_headroom`` of its limit: the planned grip is realised only to within a servo's
+stiffness times a millimetre-scale placement error, which is most of a light object's grip.
 """
 
 from __future__ import annotations
@@ -240,7 +245,7 @@ def grip_boost(servo_forces: np.ndarray, limits: np.ndarray, common: CommonParam
     """
     limits = np.asarray(limits, dtype=float)
     limited = np.isfinite(limits)
-    if not limited.any():
+    if not limited.any() or common.grip_safety <= 0.0:   # no headroom known; no grip to scale
         return 1.0
     most = common.max_grip_safety / common.grip_safety
     use = np.abs(np.asarray(servo_forces, dtype=float)[limited]) / limits[limited]
