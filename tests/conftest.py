@@ -3,6 +3,7 @@ need them skip cleanly where they are absent."""
 
 from __future__ import annotations
 
+import dataclasses
 import os
 
 import pytest
@@ -36,7 +37,5 @@ def shadow():
 def without_grip_boost(config):
     """``config`` (a ValidateConfig) with the squeeze's grip boost off (``max_grip_safety`` =
     ``grip_safety``): for tests of how the grip is sized before the boost scales it."""
-    import dataclasses
-
     return dataclasses.replace(config, common=dataclasses.replace(
         config.common, max_grip_safety=config.common.grip_safety))

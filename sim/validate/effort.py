@@ -21,7 +21,7 @@ from sim.metrics.holding import HoldLoads, min_actuator_effort
 from sim.world.contacts import Contacts
 from sim.world.scene import Scene
 
-__all__ = ["actuator_effort", "closest_per_body"]
+__all__ = ["actuator_effort", "closest_per_body", "finger_moment_arms", "servo_force_limits"]
 
 
 def closest_per_body(near: Contacts) -> np.ndarray:
@@ -29,6 +29,25 @@ def closest_per_body(near: Contacts) -> np.ndarray:
     order of body id."""
     return np.array([np.flatnonzero(near.body_a == b)[np.argmin(near.dist[near.body_a == b])]
                      for b in np.unique(near.body_a)], dtype=int)
+
+
+def finger_moment_arms(scene: Scene, finger_mask: np.ndarray) -> np.ndarray:
+    """The hand actuators' moment arms M (∂ actuator length / ∂ q, gear included; n_act × the
+    hand's dofs in ``scene``) over the finger joints, zero outside ``finger_mask`` (per kept
+    hand joint). Needs ``mj_forward`` (or ``mj_fwdPosition``) to have run."""
+    m, d = scene.model, scene.data
+    moment = np.zeros((m.nu, m.nv))
+    mujoco.mju_sparse2dense(moment, d.actuator_moment, d.moment_rownnz, d.moment_rowadr,
+                            d.moment_colind)
+    return moment[np.ix_(scene.hand_act, scene.hand_dadr)] * finger_mask
+
+
+def servo_force_limits(scene: Scene) -> np.ndarray:
+    """Per hand actuator of ``scene``, its force limit (the upper ``forcerange``; N or N·m),
+    ``inf`` where the actuator is not force-limited."""
+    m, acts = scene.model, scene.hand_act
+    return np.where(m.actuator_forcelimited[acts].astype(bool), m.actuator_forcerange[acts, 1],
+                    np.inf)
 
 
 def actuator_effort(scene: Scene, near: Contacts, finger_mask: np.ndarray, hold: HoldLoads) -> float:
@@ -43,11 +62,8 @@ def actuator_effort(scene: Scene, near: Contacts, finger_mask: np.ndarray, hold:
     idx = closest_per_body(near)
     if not len(idx):
         return float("inf")
-    moment = np.zeros((m.nu, m.nv))
-    mujoco.mju_sparse2dense(moment, d.actuator_moment, d.moment_rownnz, d.moment_rowadr,
-                            d.moment_colind)
     acts = scene.hand_act
-    arm = moment[np.ix_(acts, scene.hand_dadr)] * finger_mask
+    arm = finger_moment_arms(scene, finger_mask)
     to_effort = np.linalg.pinv(arm.T, rcond=1e-6)
     points = near.points_a[idx]
     jacp = np.zeros((3, m.nv))
@@ -55,8 +71,7 @@ def actuator_effort(scene: Scene, near: Contacts, finger_mask: np.ndarray, hold:
     for c, i in enumerate(idx):
         mujoco.mj_jac(m, d, jacp, None, points[c], int(near.body_a[i]))
         per[:, c, :] = to_effort @ (jacp[:, scene.hand_dadr] * finger_mask).T
-    limited = m.actuator_forcelimited[acts].astype(bool)
-    limit = np.where(limited, m.actuator_forcerange[acts, 1], np.inf)
+    limit = servo_force_limits(scene)
     com = d.xipos[scene.obj_body]
     worst = 0.0
     for load in np.asarray(hold.loads, dtype=float).reshape(-1, 6):

@@ -53,14 +53,13 @@ from sim.hand.model import Hand
 from sim.metrics.holding import HoldLoads, min_grip_force_n
 from sim.validate.config import GRAVITY_MPS2, CommonParams
 from sim.validate.contact_forces import balanced_normal_forces
-from sim.validate.effort import closest_per_body
+from sim.validate.effort import closest_per_body, finger_moment_arms, servo_force_limits
 from sim.world.contacts import Contacts
 from sim.world.scene import Scene
 
 __all__ = ["GraspTargets", "finger_joint_mask", "grip_boost", "grip_force_n", "joint_stiffness",
-           "largest_force_n", "least_grip_total_n", "loads_in_world", "servo_force_limits",
-           "servo_limits_from", "servo_stiffness_from", "squeeze_total_n",
-           "targets_from_contacts", "weight_loads"]
+           "largest_force_n", "least_grip_total_n", "loads_in_world", "servo_limits_from",
+           "servo_stiffness_from", "squeeze_total_n", "targets_from_contacts", "weight_loads"]
 
 # relative damping of the pseudo-inverses: the contact Jacobian's (m², as J Jᵀ) and the joint
 # stiffness's (times its largest eigenvalue; only makes singular directions harmless)
@@ -165,16 +164,12 @@ def least_grip_total_n(points: np.ndarray, normals_in: np.ndarray, loads: HoldLo
 
 def _servo_arm(scene: Scene, finger_mask: np.ndarray,
                act_stiffness: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-    """The hand actuators' moment arms over the finger joints (n_act × nq, zero outside
-    ``finger_mask``) and each actuator's position stiffness k (see :func:`joint_stiffness`)."""
-    m, d = scene.model, scene.data
-    moment = np.zeros((m.nu, m.nv))
-    mujoco.mju_sparse2dense(moment, d.actuator_moment, d.moment_rownnz, d.moment_rowadr,
-                            d.moment_colind)
-    acts = scene.hand_act
+    """The hand actuators' moment arms over the finger joints (:func:`finger_moment_arms`) and
+    each actuator's position stiffness k (see :func:`joint_stiffness`)."""
+    m, acts = scene.model, scene.hand_act
     k = (np.where(scene.position_servos(), np.maximum(-m.actuator_biasprm[acts, 1], 0.0), 0.0)
          if act_stiffness is None else np.asarray(act_stiffness, dtype=float))
-    return moment[np.ix_(acts, scene.hand_dadr)] * finger_mask, k
+    return finger_moment_arms(scene, finger_mask), k
 
 
 def joint_stiffness(scene: Scene, finger_mask: np.ndarray,
@@ -193,15 +188,6 @@ def joint_stiffness(scene: Scene, finger_mask: np.ndarray,
     """
     arm, k = _servo_arm(scene, finger_mask, act_stiffness)
     return arm.T @ (k[:, None] * arm)
-
-
-def servo_force_limits(scene: Scene) -> np.ndarray:
-    """Per hand actuator of ``scene``, its force limit (the upper ``forcerange``; N or N·m),
-    ``inf`` where the actuator is not force-limited."""
-    m = scene.model
-    acts = scene.hand_act
-    return np.where(m.actuator_forcelimited[acts].astype(bool), m.actuator_forcerange[acts, 1],
-                    np.inf)
 
 
 def _same_named(source: Scene, scene: Scene, values: np.ndarray, missing: float) -> np.ndarray:
