@@ -19,7 +19,9 @@ Layout (one group per object, with the reference implementation's column names `
     (NaN when not validated; −1 when the simulated contacts after closing are not in force
     closure, the GWS convention of :mod:`sim.metrics.gws`); ``pregrasp_pose`` /
     ``squeeze_pose`` (N,J) radians: the joint vectors the validator closed from and to (NaN
-    when not simulated), ``stages_made_by`` (N) strings: how they were made ("dexaug" contact
+    when not simulated), ``touch_pose`` (N,J) radians: the grasp stage ``dgb`` closed through
+    between them (NaN for other protocols; :mod:`sim.validate.stages`; a file written before it
+    existed reads without it), ``stages_made_by`` (N) strings: how they were made ("dexaug" contact
     targets, "bodex", "dgb-rule", "given"),
     ``closing`` (N) strings: "free" or "pinned" (the object held while the fingers closed);
     ``demo_id`` (N) strings.
@@ -46,13 +48,21 @@ import dataclasses
 import json
 import logging
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import h5py
 import numpy as np
 
+from augment.grasp_table import (
+    STR_COLUMNS,
+    ObjectTable,
+    brief,
+    concat_tables,
+    grasp_count,
+    select_rows,
+    with_rejected,
+)
 from sim import provenance
 from sim.errors import DexaugError
 from sim.io import atomic_path
@@ -71,9 +81,8 @@ COLUMNS: dict[str, Any] = {
     "palm_pose": np.float64, "hand_pose": np.float64, "gws": np.float64, "volume": np.float64,
     "fingers_used": np.bool_, "passed": np.bool_, "displacement_m": np.float64,
     "rotation_rad": np.float64, "penetration_m": np.float64, "sim_epsilon": np.float64,
-    "pregrasp_pose": np.float64, "squeeze_pose": np.float64,
+    "pregrasp_pose": np.float64, "squeeze_pose": np.float64, "touch_pose": np.float64,
 }
-_STR_COLUMNS = ("failure", "demo_id", "stages_made_by", "closing")
 _STR = h5py.string_dtype()
 _REPR_OBJECTS = 12   # objects a printed Dataset lists, one line each
 
@@ -84,50 +93,6 @@ class DatasetError(DexaugError):
 
 class DuplicateGraspsError(DexaugError):
     """:func:`append` was given grasps the file already holds (a repeated run)."""
-
-
-@dataclass
-class ObjectTable:
-    """One object's grasps as NumPy arrays (see the module docstring for the columns).
-
-    ``contacts(i)`` gives grasp i's ``(points, normals, finger)``; ``rejected`` holds the side
-    table (or None); ``attrs`` the provenance attributes."""
-
-    columns: dict[str, np.ndarray]
-    joint_names: tuple[str, ...]
-    finger_names: tuple[str, ...]
-    attrs: dict[str, Any] = field(default_factory=dict)
-    rejected: ObjectTable | None = None
-
-    def __len__(self) -> int:
-        return len(self.columns["gws"])
-
-    def __getitem__(self, key: str) -> np.ndarray:
-        return self.columns[key]
-
-    def __repr__(self) -> str:
-        """A summary, not the arrays: a printed table of thousands of grasps stays one line."""
-        return (f"ObjectTable({_brief(self)}; {len(self.joint_names)} joints, fingers "
-                f"{list(self.finger_names)}; columns {sorted(self.columns)}; "
-                f"attrs {sorted(self.attrs)})")
-
-    def contacts(self, i: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        o = self.columns["contact_offsets"]
-        s = slice(int(o[i]), int(o[i + 1]))
-        return (self.columns["contact_points"][s], self.columns["contact_normals"][s],
-                self.columns["contact_finger"][s])
-
-
-def _grasps(t: ObjectTable) -> int:
-    """Kept and rejected grasps of ``t``."""
-    return len(t) + (len(t.rejected) if t.rejected is not None else 0)
-
-
-def _brief(t: ObjectTable) -> str:
-    passed = int(np.count_nonzero(t.columns.get("passed", np.zeros(0, bool))))
-    rejected = 0 if t.rejected is None else len(t.rejected)
-    return (f"{len(t)} grasps ({passed} passed), {rejected} rejected, "
-            f"hand {t.attrs.get('hand', '?')}")
 
 
 class Dataset(dict[str, ObjectTable]):
@@ -145,8 +110,8 @@ class Dataset(dict[str, ObjectTable]):
         made = describe_code_version(decoded(self.attrs.get("code_version")))
         where = f"{self.path}: " if self.path else ""
         lines = [f"Dataset({where}{len(self)} object{'s' * (len(self) != 1)}, "
-                 f"{sum(_grasps(t) for t in self.values())} grasps; written by {made})"]
-        lines += [f"  {name}: {_brief(t)}" for name, t in list(self.items())[:_REPR_OBJECTS]]
+                 f"{sum(grasp_count(t) for t in self.values())} grasps; written by {made})"]
+        lines += [f"  {name}: {brief(t)}" for name, t in list(self.items())[:_REPR_OBJECTS]]
         if len(self) > _REPR_OBJECTS:
             lines.append(f"  … and {len(self) - _REPR_OBJECTS} more objects")
         return "\n".join(lines)
@@ -180,6 +145,7 @@ def from_fsg(grasps: Sequence[Any], joint_names: Sequence[str], finger_names: Se
         "sim_epsilon": nan.copy(), "demo_id": np.array([demo_id] * n, dtype=object),
         "pregrasp_pose": np.full((n, len(joint_names)), np.nan),
         "squeeze_pose": np.full((n, len(joint_names)), np.nan),
+        "touch_pose": np.full((n, len(joint_names)), np.nan),
         "stages_made_by": np.array([""] * n, dtype=object),
         "closing": np.array([""] * n, dtype=object),
     }
@@ -203,61 +169,22 @@ def from_fsg(grasps: Sequence[Any], joint_names: Sequence[str], finger_names: Se
             cols["sim_epsilon"][i] = r.epsilon
             if r.pregrasp is not None:
                 cols["pregrasp_pose"][i], cols["squeeze_pose"][i] = r.pregrasp, r.squeeze
+            if r.touch is not None:
+                cols["touch_pose"][i] = r.touch
             cols["stages_made_by"][i] = r.squeeze_convention or ""
             cols["closing"][i] = r.closing or ""
     table = ObjectTable(cols, tuple(joint_names), tuple(fingers), dict(attrs or {}))
     if validation is not None and split_rejected:
         keep = cols["passed"]
-        good, bad = _select(table, keep), _select(table, ~keep)
+        good, bad = select_rows(table, keep), select_rows(table, ~keep)
         good.rejected = bad
         return good
     return table
 
 
-def _select(t: ObjectTable, mask: np.ndarray) -> ObjectTable:
-    idx = np.flatnonzero(mask)
-    o = t.columns["contact_offsets"]
-    rows = (np.concatenate([np.arange(o[i], o[i + 1]) for i in idx]) if len(idx)
-            else np.zeros(0, np.int64))
-    cols = {k: v[idx] for k, v in t.columns.items()
-            if not k.startswith("contact_")}
-    for k in ("contact_points", "contact_normals", "contact_finger"):
-        cols[k] = t.columns[k][rows]
-    counts = o[1:] - o[:-1]
-    cols["contact_offsets"] = np.r_[0, np.cumsum(counts[idx])].astype(np.int64)
-    return ObjectTable(cols, t.joint_names, t.finger_names, dict(t.attrs))
-
-
-def _concat(a: ObjectTable, b: ObjectTable) -> ObjectTable:
-    if a.joint_names != b.joint_names or a.finger_names != b.finger_names:
-        raise ValueError("cannot append grasps of a different hand layout (joint or finger "
-                         "names differ)")
-    cols = {}
-    for k in a.columns:
-        if k == "contact_offsets":
-            cols[k] = np.r_[a.columns[k], a.columns[k][-1] + b.columns[k][1:]].astype(np.int64)
-        else:
-            cols[k] = np.concatenate([a.columns[k], b.columns[k]])
-    rej = a.rejected
-    if b.rejected is not None:
-        rej = b.rejected if rej is None else _concat(rej, b.rejected)
-    # the first rows' attributes: a table's provenance is never overwritten by later rows'
-    return ObjectTable(cols, a.joint_names, a.finger_names, dict(a.attrs), rej)
-
-
-def with_rejected(t: ObjectTable) -> ObjectTable:
-    """The table's passing grasps followed by its rejected ones, in one table (no side table):
-    for exports that carry every grasp with its verdict."""
-    if t.rejected is None or not len(t.rejected):
-        return dataclasses.replace(t, rejected=None)
-    return dataclasses.replace(_concat(dataclasses.replace(t, rejected=None),
-                                       dataclasses.replace(t.rejected, rejected=None)),
-                               rejected=None)
-
-
 def _write_group(g: h5py.Group, t: ObjectTable) -> None:
     for k, v in t.columns.items():
-        if k in _STR_COLUMNS:
+        if k in STR_COLUMNS:
             g.create_dataset(k, data=np.array([str(x) for x in v], dtype=object), dtype=_STR)
         else:
             g.create_dataset(k, data=v)
@@ -277,7 +204,7 @@ def _read_group(g: h5py.Group) -> ObjectTable:
     cols: dict[str, np.ndarray] = {}
     for k, ds in g.items():
         if isinstance(ds, h5py.Dataset):
-            cols[k] = (np.array(ds.asstr()[()], dtype=object) if k in _STR_COLUMNS
+            cols[k] = (np.array(ds.asstr()[()], dtype=object) if k in STR_COLUMNS
                        else ds[()])
     attrs = {k: plain(v) for k, v in g.attrs.items() if k not in ("joint_names", "finger_names")}
     rej = _read_group(g["rejected"]) if "rejected" in g else None
@@ -362,7 +289,7 @@ def _refuse_duplicates(path: Path, old: Mapping[str, ObjectTable],
     seen = {name: set(_row_keys(old.get(name))) for name in new}
     dup = {name: n for name, t in new.items() if (n := sum(k in seen[name] for k in _row_keys(t)))}
     if dup:
-        total = sum(_grasps(t) for t in new.values())
+        total = sum(grasp_count(t) for t in new.values())
         raise DuplicateGraspsError(
             f"{path}: {sum(dup.values())} of the {total} grasps to append are exact duplicates "
             f"of grasps already in the file ({', '.join(f'{k}: {n}' for k, n in dup.items())};"
@@ -386,8 +313,8 @@ def append(path: Path | str, tables: Mapping[str, ObjectTable], *,
         _refuse_duplicates(path, old, new)
     for name, t in new.items():   # old rows first, with their attributes (module docstring)
         old[name] = t if name not in old else dataclasses.replace(
-            _concat(old[name], t), attrs=provenance.merged_attrs(old[name].attrs, t.attrs,
-                                                                  _grasps(t)))
+            concat_tables(old[name], t), attrs=provenance.merged_attrs(old[name].attrs, t.attrs,
+                                                                  grasp_count(t)))
     file_attrs = {k: v for k, v in existing.attrs.items()
                   if k not in ("format", "versions", "code_version")}
     save(path, old, file_attrs)

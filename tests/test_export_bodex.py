@@ -167,3 +167,43 @@ def test_refusals(tmp_path: Path) -> None:
     with pytest.raises(DexaugError, match="hand 'leap_right' cannot be written in the bodex"):
         write_bodex(tmp_path / "x", {}, Hand.load("leap_right"))
     assert not (tmp_path / "x").exists()
+
+
+@needs_ycb
+def test_the_grasp_stage_is_the_one_dgb_closes_through(tmp_path: Path) -> None:
+    """``grasp_qpos`` is the dataset's ``touch_pose`` where ``dgb`` recorded one, ``hand_pose``
+    where not, and, derived under ``dexaug``, the validator's touching grasp stage."""
+    from augment import dataset
+    from augment.export import read_bodex
+    from sim.grasp import Grasp
+    from sim.validate.validator import Validator
+    from sim.world.objects import load_object
+
+    path, hand, _ = _dataset_of_reference(tmp_path)
+    name = "005_tomato_soup_can"
+    table = dataset.load(path)[name]
+    touch = np.full_like(table.columns["hand_pose"], np.nan)
+    touch[0] = table.columns["hand_pose"][0] + 0.01
+    table.columns["touch_pose"] = touch
+    stored = tmp_path / "stored.h5"
+    dataset.save(stored, {name: table})
+    _export(stored, tmp_path / "stored", "bodex")
+    idx = [hand.joint_names.index(j) for j in DGB_JOINTS]
+    got = {r["dexaug_index"]: r["grasp_qpos"][7:] for r in read_bodex(tmp_path / "stored")}
+    np.testing.assert_allclose(got[0], touch[0][idx], atol=1e-12)
+    np.testing.assert_allclose(got[1], table["hand_pose"][1][idx], atol=1e-12)
+
+    for col in ("pregrasp_pose", "squeeze_pose", "touch_pose"):   # never simulated
+        table.columns[col][:] = np.nan
+    bare = tmp_path / "bare.h5"
+    dataset.save(bare, {name: table})
+    _export(bare, tmp_path / "derived", "bodex", "--squeeze-convention", "dexaug")
+    v = Validator(hand, load_object(name))
+    for r in read_bodex(tmp_path / "derived"):
+        i = r["dexaug_index"]
+        if i < 3:
+            palm = table["palm_pose"][i]
+            want = v.stages(Grasp.from_arrays(palm[:3], palm[3:], table["hand_pose"][i]),
+                            "dexaug", sized_for="dgb")
+            np.testing.assert_allclose(r["grasp_qpos"][7:], want.grasp[idx], atol=1e-12)
+            assert np.abs(want.grasp - table["hand_pose"][i]).max() > 1e-4   # it moved

@@ -438,3 +438,29 @@ def test_dataset_round_trip_append_and_atomicity(tmp_path: Path, monkeypatch) ->
         dataset.append(path, {"obj": fresh})
     assert path.read_bytes() == before
     assert [p.name for p in tmp_path.iterdir()] == ["grasps.h5"]
+
+
+def test_a_file_written_before_a_column_existed_takes_appended_rows_that_have_it(
+        tmp_path: Path) -> None:
+    """``touch_pose`` (the ``dgb`` grasp stage) came after files were written without it:
+    appending to such a file keeps the new rows' values and gives the old rows NaN, either way
+    round, instead of dropping the column or failing."""
+    joints = tuple(f"j{i}" for i in range(6))
+    fingers = ("thumb", "index", "middle")
+    old = dataset.from_fsg(_fake_grasps(2, 6, fingers), joints, fingers)
+    del old.columns["touch_pose"]                       # as written before the column
+    path = tmp_path / "old.h5"
+    dataset.save(path, {"obj": old})
+    dgb = dataclasses.replace(_val(True, None, 6), protocol="dgb", touch=np.full(6, 0.2))
+    new = dataset.from_fsg(_fake_grasps(1, 6, fingers, seed=1), joints, fingers, [dgb])
+    dataset.append(path, {"obj": new})
+    touch = dataset.load(path)["obj"]["touch_pose"]
+    assert touch.shape == (3, 6)
+    assert np.isnan(touch[:2]).all()
+    np.testing.assert_array_equal(touch[2], np.full(6, 0.2))
+    path2 = tmp_path / "new.h5"                         # the other way round
+    dataset.save(path2, {"obj": new})
+    dataset.append(path2, {"obj": old})
+    touch = dataset.load(path2)["obj"]["touch_pose"]
+    np.testing.assert_array_equal(touch[0], np.full(6, 0.2))
+    assert np.isnan(touch[1:]).all()

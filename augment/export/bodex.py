@@ -33,7 +33,9 @@ every grasp's stages came from). Each ``.npy`` also holds ``stages_made_by``,
 (a temp folder, then renamed) and replaces only an earlier export (one with the manifest).
 
 Stages: the dataset's ``pregrasp_pose`` / ``squeeze_pose`` where a row has both (what the
-validator simulated: ``dataset:<stages_made_by>``), else made as the validator makes them
+validator simulated: ``dataset:<stages_made_by>``), with ``grasp_qpos`` its ``touch_pose``
+where ``dgb`` recorded one (the grasp stage it closed through) and ``hand_pose`` otherwise;
+else made as the validator makes them
 (:meth:`sim.validate.validator.Validator.stages` with a squeeze convention, default the
 validate config's ``[dgb] squeeze_convention``: ``derived:<convention>``). BODex's own
 convention is ``bodex`` (squeeze = 2·grasp − pregrasp, its ``plan_batch_env.py``). dexaug's
@@ -102,20 +104,24 @@ class BodexExport:
 def table_stages(table: ObjectTable, hand: Hand, object_name: str, *,
                  convention: str | None = None,
                  validator: Callable[[], Any] | None = None
-                 ) -> tuple[np.ndarray, np.ndarray, list[str]]:
-    """Pregrasp and squeeze joint vectors (N, nq) of every grasp of ``table`` and where each
-    came from (module docstring). ``validator()`` gives the :class:`Validator` for the object
-    (default: one built for ``hand`` and ``object_name``), called only when a row needs it."""
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
+    """Pregrasp, grasp and squeeze joint vectors (N, nq each) of every grasp of ``table`` and
+    where each row's came from (module docstring). ``validator()`` gives the
+    :class:`Validator` for the object (default: one built for ``hand`` and ``object_name``),
+    called only when a row needs it."""
     n, nq = len(table), hand.nq
     nan = np.full((n, nq), np.nan)
     pre = np.array(table.columns.get("pregrasp_pose", nan), dtype=float)
     sq = np.array(table.columns.get("squeeze_pose", nan), dtype=float)
+    touch = np.array(table.columns.get("touch_pose", nan), dtype=float)
+    grasp = np.where(np.isfinite(touch).all(axis=1)[:, None], touch,
+                     np.asarray(table["hand_pose"], dtype=float))
     made = table.columns.get("stages_made_by")
     stored = np.isfinite(pre).all(axis=1) & np.isfinite(sq).all(axis=1)
     labels = [f"dataset:{(str(made[i]) if made is not None else '') or 'unknown'}"
               if stored[i] else "" for i in range(n)]
     if stored.all():
-        return pre, sq, labels
+        return pre, grasp, sq, labels
     if validator is None:
         def validator() -> Any:
             from sim.validate.validator import Validator
@@ -131,8 +137,9 @@ def table_stages(table: ObjectTable, hand: Hand, object_name: str, *,
                for k, a in (("pregrasp", pre), ("squeeze", sq))}
         stages = v.stages(Grasp.from_arrays(palm[:3], palm[3:], table["hand_pose"][i], **own),
                           convention, sized_for="dgb")
-        pre[i], sq[i], labels[i] = stages.pregrasp, stages.squeeze, f"derived:{stages.made_by}"
-    return pre, sq, labels
+        pre[i], grasp[i], sq[i] = stages.pregrasp, stages.grasp, stages.squeeze
+        labels[i] = f"derived:{stages.made_by}"
+    return pre, grasp, sq, labels
 
 
 def write_bodex(out: Path | str, tables: Mapping[str, ObjectTable], hand: Hand, *,
@@ -154,7 +161,7 @@ def write_bodex(out: Path | str, tables: Mapping[str, ObjectTable], hand: Hand, 
         if not len(table):
             continue
         q = np.asarray(table["hand_pose"], dtype=float)
-        pre, sq, labels = table_stages(table, hand, name, convention=squeeze_convention)
+        pre, grasp, sq, labels = table_stages(table, hand, name, convention=squeeze_convention)
         body = foreign.to_body(table["palm_pose"], q)          # rh_palm in the object frame
         root_p, root_q = pose_mul(obj_p, obj_q, *pose_mul(*body, *root_in_body))
         base = np.c_[root_p, root_q]
@@ -164,7 +171,7 @@ def write_bodex(out: Path | str, tables: Mapping[str, ObjectTable], hand: Hand, 
                 "obj_path": f"{object_root.rstrip('/')}/{name}", "obj_scale": float(object_scale),
                 "obj_pose": np.r_[obj_p, obj_q],
                 **{key: np.r_[base[i], stage[i, foreign.index]]
-                   for key, stage in zip(_STAGES, (pre, q, sq), strict=True)},
+                   for key, stage in zip(_STAGES, (pre, grasp, sq), strict=True)},
                 "stages_made_by": labels[i], "dexaug_object": name, "dexaug_index": i}
         counts.update(labels)
     manifest = {

@@ -8,10 +8,11 @@ Hand, not frame_palm), ``q_grasp``, ``q_pregrasp``, ``q_squeeze`` (radians by jo
 ``dexaug`` with our verdict (``passed``, ``failure``, ``stages_made_by``). The object frame is the
 mesh origin, placed at ``object_pose_world`` (default: the reference's, 0.3 m above the
 origin). A grasp the validator never simulated has no pregrasp or squeeze: those keys are
-``null``. Compatibility is measured, not claimed: ``tests/test_export.py`` reads the shared
-reference file with the reader the ``dgb`` agreement uses, writes it back through this module
-and gets every pose and joint angle of the 300 lines back (1e-9), and reads an export of a
-generated dataset back into the same grasps.
+``null``. ``q_grasp`` is the grasp stage the benchmark closes through: the dataset's
+``touch_pose`` where ``dgb`` recorded one, else ``hand_pose``. Compatibility is measured, not
+claimed: ``tests/test_export.py`` reads the shared reference file with the reader the ``dgb``
+agreement uses, writes it back through this module and gets every pose and joint angle of the
+300 lines back (1e-9), and reads an export of a generated dataset back into the same grasps.
 """
 
 from __future__ import annotations
@@ -64,6 +65,7 @@ def dexgraspbench_rows(table: ObjectTable, hand: Hand, object_name: str, *,
     n = len(table)
     nan = np.full((n, len(hand.joint_names)), np.nan)
     pre, sq = cols.get("pregrasp_pose", nan), cols.get("squeeze_pose", nan)
+    touch = cols.get("touch_pose", nan)
     passed = cols.get("passed")
     rows = []
     for i in range(n):
@@ -74,7 +76,8 @@ def dexgraspbench_rows(table: ObjectTable, hand: Hand, object_name: str, *,
             "object": object_name, "index": i, "object_mass_kg_real": object_mass_kg,
             "object_pose_world": [*map(float, obj_p), *map(float, obj_q)],
             f"{cfg.body}_pose_world": [*map(float, body_p), *map(float, body_q)],
-            "q_grasp": _named(hand, cols["hand_pose"][i]),
+            "q_grasp": _named(hand, touch[i] if np.isfinite(touch[i]).all()
+                              else cols["hand_pose"][i]),
             "q_pregrasp": _named(hand, pre[i]), "q_squeeze": _named(hand, sq[i]),
             "dexaug": {"passed": None if passed is None else bool(passed[i]),
                        "failure": _text(cols.get("failure"), i),

@@ -53,13 +53,15 @@ class ValidationResult:
     #: the joint vectors closed from and to (radians, full hand vectors), when simulated
     pregrasp: np.ndarray | None = None
     squeeze: np.ndarray | None = None
+    #: dgb only: the grasp stage closed through between them (sim.validate.stages)
+    touch: np.ndarray | None = None
     contact_pos_obj: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     contact_normal_obj: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
     def summary(self) -> dict[str, object]:
         """Flat, JSON-friendly view (no arrays) for tables and logs."""
         out = asdict(self)
-        for key in ("contact_pos_obj", "contact_normal_obj", "pregrasp", "squeeze"):
+        for key in ("contact_pos_obj", "contact_normal_obj", "pregrasp", "squeeze", "touch"):
             out.pop(key)
         out["phases"] = {k: asdict(v) for k, v in self.phases.items()}
         return out

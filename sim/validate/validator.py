@@ -42,6 +42,7 @@ from sim.validate.stages import GraspStages, grasp_stages
 from sim.validate.targets import (
     GraspTargets,
     finger_joint_mask,
+    holds_every_load,
     loads_in_world,
     servo_limits_from,
     servo_stiffness_from,
@@ -108,8 +109,6 @@ class Validator:
         scale = self.hand.config.validate_kp_scale
         return self.config.common.servos if scale is None else ServoSettings(kp_scale=scale)
 
-    # ------------------------------------------------------------------------------- set-up
-
     def _place(self, scene: Scene, grasp: Grasp, q: np.ndarray) -> None:
         """Reset the scene with the object at home and the hand at the grasp's palm pose."""
         scene.reset_with_grasp(*self.palm_world(grasp), q)
@@ -139,17 +138,16 @@ class Validator:
 
     def derive_targets(self, scene: Scene, q: np.ndarray, down: np.ndarray | None = None, *,
                        sized_for: str = "lift-drop") -> GraspTargets:
-        """Pregrasp and squeeze joint vectors from the contacts near the placed grasp.
-
-        Object geoms get a temporary margin of ``contact_search_m`` so MuJoCo reports near
-        misses with their distance; :func:`sim.validate.targets.targets_from_contacts` moves
-        each hand body's closest point along its normal and adds the squeeze's grip force.
-        ``sized_for`` names the protocol whose load the grip is sized for: ``lift-drop`` — the
-        weight of the scene's object pulling along ``down`` (world unit vector; None: −z),
-        ``[common]`` friction; ``six-dir`` and ``dgb`` — their six pushes
-        (:func:`sim.validate.loads.hold_loads`) with their friction; for ``dgb`` also the
-        stiffness and force limits of its servos, read back from its compiled scene, and only
-        the bodies within ``[dgb] contact_search_m`` (it counts every motion as drift)."""
+        """Pregrasp and squeeze joint vectors from the contacts near the placed grasp
+        (:func:`sim.validate.targets.targets_from_contacts`; near misses found with a temporary
+        object margin of ``contact_search_m``). ``sized_for`` names the protocol whose load the
+        grip is sized for: ``lift-drop`` — the weight pulling along ``down`` (world unit
+        vector; None: −z), ``[common]`` friction; ``six-dir`` and ``dgb`` — their six pushes
+        (:func:`sim.validate.loads.hold_loads`) with their friction; for ``dgb`` also its
+        servos' stiffness and force limits, read back from its compiled scene, and only the
+        bodies within ``[dgb] contact_search_m`` (it counts every motion as drift) unless those
+        cannot hold every push however they press (then all within ``[common]
+        contact_search_m``: :func:`sim.validate.targets.holds_every_load`)."""
         if sized_for == "lift-drop":
             loads = weight_loads(scene.obj_mass_kg, scene.data.xipos[scene.obj_body],
                                  self.config.common, down)
@@ -157,6 +155,8 @@ class Validator:
             loads = loads_in_world(hold_loads(self.obj, sized_for, self.config), scene)
         dgb = self.scene("dgb") if sized_for == "dgb" else None
         near = self._near_contacts(scene, None if dgb is None else self.config.dgb.contact_search_m)
+        if dgb is not None and not holds_every_load(near, loads):
+            near = self._near_contacts(scene)
         servos = {} if dgb is None else {"act_stiffness": servo_stiffness_from(dgb, scene),
                                          "act_limits": servo_limits_from(dgb, scene)}
         return targets_from_contacts(scene, self.hand, q, near, self.config.common, self._finger_mask,
@@ -168,14 +168,15 @@ class Validator:
         ``convention`` (default: ``[dgb] squeeze_convention``; :mod:`sim.validate.stages`),
         whose ``dexaug`` targets come from the lift-drop scene's contacts with the grip sized
         for protocol ``sized_for`` (:meth:`derive_targets`; an arm's lift: ``lift-drop``)."""
-        q = self.hand.check_q(grasp.joints, "grasp joints")
+        self.hand.check_q(grasp.joints, "grasp joints")
 
-        def derive() -> GraspTargets:
+        def derive(q: np.ndarray) -> GraspTargets:
             scene = self.scene("lift-drop")
             self._place(scene, grasp, q)
             return self.derive_targets(scene, q, sized_for=sized_for)
 
-        return grasp_stages(grasp, convention or self.config.dgb.squeeze_convention, derive)
+        return grasp_stages(grasp, convention or self.config.dgb.squeeze_convention, derive,
+                            through_touch=sized_for == "dgb")
 
     def _close(self, scene: Scene, targets: GraspTargets) -> None:
         """Close the fingers of the grasp placed in ``scene`` onto ``targets``, here."""
@@ -228,8 +229,6 @@ class Validator:
         scene = self.scene(protocol)
         self._place(scene, grasp, self.hand.check_q(grasp.joints, "grasp joints"))
         return actuator_effort(scene, self._near_contacts(scene), self._finger_mask, hold)
-
-    # ---------------------------------------------------------------------------- protocols
 
     def penetration_m(self, grasp: Grasp, protocol: str = "lift-drop") -> float:
         """Deepest hand–object penetration (metres, 0 when none) of the grasp placed as
@@ -356,8 +355,8 @@ class Validator:
         """The benchmark's protocol on the grasp's stages (:mod:`sim.validate.dgb`)."""
         stages = self.stages(grasp, convention, sized_for="dgb")
         scene = self.scene("dgb")
-        result = ValidationResult(protocol="dgb", passed=False, failure=None, penetration_m=0.0,
-                                  closing="free", squeeze_convention=stages.made_by,
+        result = ValidationResult("dgb", False, None, 0.0, closing="free", touch=stages.grasp,
+                                  squeeze_convention=stages.made_by,
                                   pregrasp=stages.pregrasp, squeeze=stages.squeeze)
         run_dgb(scene, self.config.dgb, self.palm_world(grasp), stages, result,
                 after_first_close=lambda: self._measure_contacts(scene, result))
