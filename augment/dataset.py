@@ -313,8 +313,8 @@ def append(path: Path | str, tables: Mapping[str, ObjectTable], *,
         _refuse_duplicates(path, old, new)
     for name, t in new.items():   # old rows first, with their attributes (module docstring)
         old[name] = t if name not in old else dataclasses.replace(
-            concat_tables(old[name], t), attrs=provenance.merged_attrs(old[name].attrs, t.attrs,
-                                                                  grasp_count(t)))
+            concat_tables(old[name], t),
+            attrs=provenance.merged_attrs(old[name].attrs, t.attrs, grasp_count(t)))
     file_attrs = {k: v for k, v in existing.attrs.items()
                   if k not in ("format", "versions", "code_version")}
     save(path, old, file_attrs)

@@ -15,8 +15,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["STR_COLUMNS", "ObjectTable", "brief", "concat_tables", "grasp_count", "select_rows",
-           "with_rejected"]
+__all__ = ["STR_COLUMNS", "ObjectTable", "brief", "concat_tables", "grasp_count",
+           "grasp_stage_poses", "select_rows", "with_rejected"]
 
 #: per-grasp columns stored as strings
 STR_COLUMNS = ("failure", "demo_id", "stages_made_by", "closing")
@@ -116,3 +116,12 @@ def with_rejected(t: ObjectTable) -> ObjectTable:
     return dataclasses.replace(concat_tables(dataclasses.replace(t, rejected=None),
                                        dataclasses.replace(t.rejected, rejected=None)),
                                rejected=None)
+
+
+def grasp_stage_poses(t: ObjectTable) -> np.ndarray:
+    """(N, J) radians: per grasp the joints the benchmark closed through between pregrasp and
+    squeeze — its ``touch_pose`` where ``dgb`` recorded one, else its ``hand_pose``. What an
+    export writes as the grasp stage, so it runs what was validated."""
+    hand = np.asarray(t.columns["hand_pose"], dtype=float)
+    touch = np.asarray(t.columns.get("touch_pose", np.full_like(hand, np.nan)), dtype=float)
+    return np.where(np.isfinite(touch).all(axis=1)[:, None], touch, hand)

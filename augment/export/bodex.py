@@ -62,6 +62,7 @@ import numpy as np
 
 from augment.dataset import ObjectTable
 from augment.export.foreign import ForeignHand, need_columns, same_joints, split_pose
+from augment.grasp_table import grasp_stage_poses
 from sim.errors import DexaugError
 from sim.hand.model import Hand
 from sim.transforms import pose_inv, pose_mul
@@ -113,9 +114,7 @@ def table_stages(table: ObjectTable, hand: Hand, object_name: str, *,
     nan = np.full((n, nq), np.nan)
     pre = np.array(table.columns.get("pregrasp_pose", nan), dtype=float)
     sq = np.array(table.columns.get("squeeze_pose", nan), dtype=float)
-    touch = np.array(table.columns.get("touch_pose", nan), dtype=float)
-    grasp = np.where(np.isfinite(touch).all(axis=1)[:, None], touch,
-                     np.asarray(table["hand_pose"], dtype=float))
+    grasp = grasp_stage_poses(table)
     made = table.columns.get("stages_made_by")
     stored = np.isfinite(pre).all(axis=1) & np.isfinite(sq).all(axis=1)
     labels = [f"dataset:{(str(made[i]) if made is not None else '') or 'unknown'}"

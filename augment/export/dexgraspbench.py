@@ -26,6 +26,7 @@ import numpy as np
 
 from augment.dataset import ObjectTable
 from augment.export.foreign import need_columns, same_joints
+from augment.grasp_table import grasp_stage_poses
 from sim.hand.model import Hand
 from sim.io import write_bytes_atomic
 from sim.transforms import pose_inv, pose_mul
@@ -65,7 +66,7 @@ def dexgraspbench_rows(table: ObjectTable, hand: Hand, object_name: str, *,
     n = len(table)
     nan = np.full((n, len(hand.joint_names)), np.nan)
     pre, sq = cols.get("pregrasp_pose", nan), cols.get("squeeze_pose", nan)
-    touch = cols.get("touch_pose", nan)
+    grasp = grasp_stage_poses(table)
     passed = cols.get("passed")
     rows = []
     for i in range(n):
@@ -76,8 +77,7 @@ def dexgraspbench_rows(table: ObjectTable, hand: Hand, object_name: str, *,
             "object": object_name, "index": i, "object_mass_kg_real": object_mass_kg,
             "object_pose_world": [*map(float, obj_p), *map(float, obj_q)],
             f"{cfg.body}_pose_world": [*map(float, body_p), *map(float, body_q)],
-            "q_grasp": _named(hand, touch[i] if np.isfinite(touch[i]).all()
-                              else cols["hand_pose"][i]),
+            "q_grasp": _named(hand, grasp[i]),
             "q_pregrasp": _named(hand, pre[i]), "q_squeeze": _named(hand, sq[i]),
             "dexaug": {"passed": None if passed is None else bool(passed[i]),
                        "failure": _text(cols.get("failure"), i),

@@ -61,10 +61,9 @@ from sim.world.contacts import Contacts
 from sim.world.scene import Scene
 
 __all__ = ["GraspTargets", "finger_joint_mask", "grip_boost", "grip_force_n", "holds_every_load",
-           "joint_stiffness",
-           "largest_force_n", "least_grip_total_n", "loads_in_world", "normal_first_motion",
-           "servo_limits_from",
-           "servo_stiffness_from", "squeeze_total_n", "targets_from_contacts", "weight_loads"]
+           "joint_stiffness", "largest_force_n", "least_grip_total_n", "loads_in_world",
+           "normal_first_motion", "servo_limits_from", "servo_stiffness_from", "squeeze_total_n",
+           "targets_from_contacts", "weight_loads"]
 
 # relative damping of the pseudo-inverses: the contact Jacobian's (m², as J Jᵀ) and the joint
 # stiffness's (times its largest eigenvalue; only makes singular directions harmless)
@@ -163,11 +162,17 @@ def least_grip_total_n(points: np.ndarray, normals_in: np.ndarray, loads: HoldLo
     come from a couple of contact forces a few millimetres apart; the linear programme of
     :func:`sim.metrics.holding.min_grip_force_n` knows that, the rule does not.
     """
-    least = [min_grip_force_n(points, normals_in, loads.com_m, load, loads.mu,
-                              loads.mu_torsion_m)
-             for load in np.asarray(loads.loads, dtype=float).reshape(-1, 6)]
-    finite = [x for x in least if np.isfinite(x)]
+    finite = [x for x in _least_grip_per_load(points, normals_in, loads) if np.isfinite(x)]
     return grip_safety * max(finite) if finite else float("inf")
+
+
+def _least_grip_per_load(points: np.ndarray, normals_in: np.ndarray,
+                         loads: HoldLoads) -> list[float]:
+    """Per load of ``loads``, the least total normal force (newtons; inf: none holds it) with
+    which contacts at ``points`` pressing along ``normals_in`` hold it
+    (:func:`sim.metrics.holding.min_grip_force_n`, with ``loads``' friction)."""
+    return [min_grip_force_n(points, normals_in, loads.com_m, load, loads.mu, loads.mu_torsion_m)
+            for load in np.asarray(loads.loads, dtype=float).reshape(-1, 6)]
 
 
 def holds_every_load(near: Contacts, loads: HoldLoads) -> bool:
@@ -184,10 +189,8 @@ def holds_every_load(near: Contacts, loads: HoldLoads) -> bool:
     idx = closest_per_body(near)
     if not len(idx):
         return False
-    points, normals = near.points_a[idx], near.normal[idx]
-    return all(np.isfinite(min_grip_force_n(points, normals, loads.com_m, load, loads.mu,
-                                            loads.mu_torsion_m))
-               for load in np.asarray(loads.loads, dtype=float).reshape(-1, 6))
+    return bool(np.isfinite(_least_grip_per_load(near.points_a[idx], near.normal[idx],
+                                                 loads)).all())
 
 
 def _servo_arm(scene: Scene, finger_mask: np.ndarray,
