@@ -18,8 +18,9 @@ twice — in demonstration mode (object held) and in free mode — and measured:
   which hand body touched it first before that: the robot's links reaching the object where
   the operator's fingers did not (counted above 5 mm);
 - **demo holds** (``--validate-demos``): the demo's own grasp passes the validator's lift-drop
-  (real mass, :func:`dexaug.pipeline.run.validate_demo_grasp`), and how many of those episodes
-  lifted: a grasp that does not hold in the validator cannot be lifted by steadier teleop.
+  (real mass, :func:`dexaug.pipeline.run.validate_demo_grasp`; "holds" or "slips" per
+  episode), and how many of those episodes lifted: a grasp that does not hold in the
+  validator cannot be lifted by steadier teleop.
 
 Speeds: ``natural`` closes in 0.3 s and lifts 0.15 s later (a person: first contact → lift
 ≈ 0.35 s), ``slow`` in 0.8 s and 0.8 s (the synthetic operator's default). Objects are the
@@ -27,7 +28,8 @@ generic-grasp ones by default (no hand-built reference grasp); ``--objects`` tak
 Also measured: how far a finger servo lags a 0.3 s min-jerk closure of 1.2 rad in free air at
 the bridge's servo gains and at the model's own (DESIGN §6 "fingers at human speed").
 
-    .venv/bin/python benchmarks/bench_teleop_loop.py [--seeds 2] [--speed natural|slow]
+    .venv/bin/python benchmarks/bench_teleop_loop.py [--seeds 2] [--first-seed 0]
+                                                      [--speed natural|slow]
                                                       [--objects a,b,...] [--workers 2]
                                                       [--validate-demos]
 """
@@ -230,6 +232,8 @@ def finger_lag_s(hand_name: str, kp_scale: float, close_s: float = 0.3,
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seeds", type=int, default=2)
+    ap.add_argument("--first-seed", type=int, default=0,
+                    help="seeds first-seed … first-seed + seeds − 1 (a held-out set: --first-seed 4)")
     ap.add_argument("--speed", choices=sorted(SPEEDS), default="natural")
     ap.add_argument("--objects", default=",".join(OBJECTS))
     ap.add_argument("--workers", type=int, default=2)
@@ -249,12 +253,12 @@ def main() -> None:
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         jobs = [(hand, o, s, args.speed, tmp, args.validate_demos) for o in objects
-                for s in range(args.seeds)]
+                for s in range(args.first_seed, args.first_seed + args.seeds)]
         with ProcessPoolExecutor(args.workers) as ex:
             rows = list(ex.map(run_one, jobs))
     wall = time.perf_counter() - t0
     print(f"\n{'object':22s} seed  demo  human fingers → robot fingers{'':14s} hold height  "
-          "pushed before closure (first touch)")
+          "pushed before closure (first touch)  demo grasp in lift-drop")
     for r in rows:
         if "skipped" in r:
             print(f"{r['object']:22s} {r['seed']:4d}  skipped: {r['skipped']}")
@@ -263,7 +267,8 @@ def main() -> None:
         print(f"{r['object']:22s} {r['seed']:4d}  {'yes' if r['demo'] else 'no ':4s}  "
               f"{fingers[:44]:44s} {r['hold_height_m'] * 1e3:6.0f} mm "
               f"{'lifted' if r['lifted'] else '      '} {r['push_m'] * 1e3:5.1f} mm "
-              f"{'(' + r['first_touch'] + ')' if r['first_touch'] else ''}")
+              f"{'(' + r['first_touch'] + ')' if r['first_touch'] else '':16s}"
+              f"{'' if 'demo_holds' not in r else 'holds' if r['demo_holds'] else 'slips'}")
     ok = [r for r in rows if "skipped" not in r]
     n = len(ok)
     share = {k: sum(bool(r[k]) for r in ok) for k in ("demo", "human_fingers", "lifted")}

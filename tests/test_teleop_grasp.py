@@ -137,8 +137,8 @@ def test_the_operator_keeps_off_the_table_and_closes_together(shadow, monkeypatc
     assert low.min() > -0.002, f"a finger {-low.min() * 1e3:.1f} mm into the table"
     plan = GraspMotion.plan
     try:   # the old reach: relaxed open hand along the palm normal (no human, no obstacles)
-        GraspMotion.plan = classmethod(lambda cls, *a, human=None, obstacles=None:
-                                       plan.__func__(cls, *a))
+        GraspMotion.plan = classmethod(lambda cls, *a, human=None, obstacles=None,
+                                       pressed=False: plan.__func__(cls, *a))
         old = synthesize(can, hand=shadow, seed=0, config=quiet)
     finally:
         GraspMotion.plan = plan

@@ -32,6 +32,9 @@ class SynthConfig:
     until the object stops the fingers, and a robot fingertip aimed at the surface stops
     short of it by the retargeting error. table_clearance_m: how far above the table the
     operator keeps the fingers while reaching (they see it; :mod:`teleop.synthetic.preshape`).
+    grip_friction: the sliding friction a generic grasp's fingertips are counted on to have
+    when the operator picks a placement that can hold the object up (a person's dry grip on
+    household objects, ≈ 0.5; :mod:`teleop.synthetic.grasp_search`).
     Episode: approach_distance_m (start of the wrist, back along the palm normal and up),
     lift_height_m, and the phase durations in seconds. Scene: object_pos_m / object_rpy_deg
     (object frame in the world when the caller gives none), head_pos_m, head_pitch_deg
@@ -51,6 +54,7 @@ class SynthConfig:
     press_depth_m: float = 0.01
     table_clearance_m: float = 0.01
     object_clearance_m: float = 0.015
+    grip_friction: float = 0.5
     approach_distance_m: float = 0.25
     lift_height_m: float = 0.10
     still_s: float = 0.4
@@ -72,7 +76,7 @@ _SYNTH_FLOATS = {"rate_hz": (1.0, 1000.0), "time_jitter_s": (0.0, 0.1), "latency
                  "orientation_noise_deg": (0.0, 45.0), "dropout_fraction": (0.0, 0.9),
                  "hand_length_m": (0.10, 0.30), "tip_surface_snap_m": (0.0, 0.1),
                  "press_depth_m": (0.0, 0.05), "table_clearance_m": (0.0, 0.1),
-                 "object_clearance_m": (0.0, 0.1),
+                 "object_clearance_m": (0.0, 0.1), "grip_friction": (0.05, 2.0),
                  "approach_distance_m": (0.0, 2.0),
                  "lift_height_m": (0.0, 1.0), "still_s": (0.0, 60.0),
                  "approach_s": (0.05, 60.0), "close_s": (0.05, 60.0), "settle_s": (0.0, 60.0),

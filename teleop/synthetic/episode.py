@@ -90,13 +90,15 @@ class GraspMotion:
     @classmethod
     def plan(cls, cfg: SynthConfig, wrist_pos_m: Array, wrist_rot: Array, palm_rot: Array,
              grasp_pose: HandPose, *, human: HumanHand | None = None,
-             obstacles: Obstacles | None = None) -> GraspMotion:
+             obstacles: Obstacles | None = None, pressed: bool = False) -> GraspMotion:
         """The motion toward the grasp wrist pose whose robot palm axes are ``palm_rot``.
 
         With ``human`` and ``obstacles`` (the table and the object the operator sees) the hand
         comes in from the direction, and in the pre-shape, that keep it off both until it
         closes (:func:`teleop.synthetic.preshape.plan_reach`); without, it backs off along the
-        palm normal and up and reaches with the relaxed open hand."""
+        palm normal and up and reaches with the relaxed open hand. ``pressed``: the grasp
+        closes its fingertips past the surface (a generic grasp;
+        :func:`teleop.synthetic.preshape.reach_clearance_m`)."""
         phases, t_end = phase_times(cfg)
 
         def along(away: Array, open_pose: HandPose) -> GraspMotion:
@@ -121,7 +123,7 @@ class GraspMotion:
             return along(away, grasp_pose).wrist_and_closure, reach_t, close_t
 
         reach = plan_reach(human, grasp_pose, path_for, obstacles, cfg.table_clearance_m,
-                           cfg.object_clearance_m, dirs)
+                           cfg.object_clearance_m, dirs, pressed)
         p_g, r_g, _ = along(reach.away, reach.preshape).wrist_and_closure(phases["close"][1])
         touch = contact_progress(human, reach.preshape, grasp_pose, p_g, r_g, obstacles,
                                  _TOUCH_M)

@@ -61,13 +61,13 @@ class GraspTarget:
 
 def grasp_target(robot: Hand, human: HumanHand, corr: Correspondence, scale: float,
                  object_name: str, obj_pos: Array, obj_rot: Array, *, grasp_name: str | None,
-                 snap_m: float, press_m: float = 0.0) -> GraspTarget:
+                 snap_m: float, press_m: float = 0.0, grip_friction: float = 0.5) -> GraspTarget:
     """The operator's grasp of ``object_name`` (world pose ``obj_pos``, ``obj_rot``) for robot
     hand ``robot``: imitating its reference grasp for the object (or ``grasp_name``), else a
     generic side grasp (module docstring). ``scale``: the retargeter's fingertip scale for this
     operator; ``snap_m``: reference pulp sites this close to the surface go onto it;
     ``press_m``: in a generic grasp, the operator closes the fingertips this far past the
-    surface (metres)."""
+    surface (metres); ``grip_friction``: the friction the operator counts on to hold it up."""
     ref = _reference_for(robot, object_name, grasp_name)
     residual: dict[str, float] = {}
     if ref is not None:
@@ -94,7 +94,7 @@ def grasp_target(robot: Hand, human: HumanHand, corr: Correspondence, scale: flo
                     {k: round(v, 4) for k, v in residual.items()})
     else:
         wrist_pos, wrist_rot, grasp_pose, residual = _generic_grasp(
-            robot, human, corr, scale, object_name, obj_pos, obj_rot, press_m)
+            robot, human, corr, scale, object_name, obj_pos, obj_rot, press_m, grip_friction)
         palm_pos, palm_rot = corr.palm_for_wrist(wrist_pos, wrist_rot)
     return GraspTarget(wrist_pos_m=wrist_pos, wrist_rot=wrist_rot, pose=grasp_pose,
                        palm_pos_m=palm_pos, palm_rot=palm_rot, residual_m=residual,
@@ -152,14 +152,17 @@ def _fill_unmapped(pose: HandPose, mapped_joints: Iterable[str]) -> None:
 
 def _generic_grasp(robot: Hand, human: HumanHand, corr: Correspondence, scale: float,
                    object_name: str, obj_pos: Array, obj_rot: Array,
-                   press_m: float) -> tuple[Array, Array, HandPose, dict[str, float]]:
+                   press_m: float, grip_friction: float
+                   ) -> tuple[Array, Array, HandPose, dict[str, float]]:
     """The searched generic grasp (:func:`teleop.synthetic.grasp_search.search_grasp`) as an
     operator wrist pose and hand pose; residuals: the mapped tips' signed surface distances
     per finger and their mean absolute value ``mean_surface_m``."""
     from sim.world.objects import load_object
 
-    mesh = load_object(object_name).surface_mesh()
-    found = search_grasp(robot, human, corr, scale, mesh, obj_pos, obj_rot, press_m)
+    asset = load_object(object_name)
+    mesh = asset.surface_mesh()
+    found = search_grasp(robot, human, corr, scale, mesh, obj_pos, obj_rot, press_m,
+                         com_m=obj_pos + obj_rot @ asset.com_m, friction=grip_friction)
     wrist_pos, wrist_rot = corr.wrist_for_palm(found.palm_pos_m, found.palm_rot)
     pose = found.pose
     _fill_unmapped(pose, corr.mapping.fingers.values())

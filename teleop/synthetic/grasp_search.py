@@ -16,6 +16,15 @@ hand config, frame_palm) would enter the object or the table, where the open han
 goes into the object, or where a robot finger's links (its pad aside) go into it at the
 grasp, are rejected.
 
+A person also picks a grasp that will hold the object up. Of the placements that fit, the
+operator takes the best-fitting one whose touching fingertips can carry the object's weight
+with friction (:func:`sim.metrics.holding.min_grip_force_n`: one soft contact per fingertip,
+friction ``friction``, the weight at the object's centre of mass) with a total grip of at most
+:data:`_MAX_GRIP_RATIO` times the weight; only where none can is the best-fitting one taken
+as it is. Measured on the closed-loop benchmark (``benchmarks/bench_teleop_loop.py``):
+fingertips placed on a box's top face or a bottle's shoulder fit as well as any, and the
+simulated hand then lifts nothing.
+
 The object rests on a table: its lowest point is the table top. Distances are signed
 distances to the object's surface mesh, from its nearest vertex and that vertex's normal
 (YCB meshes are dense: ≈ 1–2 mm between vertices), so the whole search is a few KD-tree
@@ -32,6 +41,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from sim.hand.model import Hand
+from sim.metrics.holding import min_grip_force_n
 from teleop.messages import JOINT_INDEX
 from teleop.synthetic.correspondence import Correspondence
 from teleop.synthetic.human_hand import FINGERS, LONG_FINGERS, HandPose, HumanHand, finger_of, lerp_pose
@@ -48,7 +58,7 @@ _LEVELS = np.linspace(0.0, 1.0, 26)
 #: elevations (negative: pointing down), radians; roll of the fingers about the palm normal
 #: from straight up.
 _SIDE_AZIMUTH = np.radians([-60.0, -30.0, 0.0, 30.0, 60.0])
-_SIDE_ELEVATION = np.radians([0.0, -30.0])
+_SIDE_ELEVATION = np.radians([0.0, -30.0, -60.0])
 _SIDE_ROLL = np.radians([-60.0, -30.0, 0.0, 30.0, 60.0])
 #: Top approaches: fingers horizontal, at these azimuths from +x (never toward the operator).
 _TOP_AZIMUTH = np.radians([-90.0, -45.0, 0.0, 45.0, 90.0])
@@ -70,6 +80,10 @@ _TOUCH_M = 0.005
 #: Joint-range samples of the robot hand for its fingertip workspaces.
 _REACH_SAMPLES = 20000
 _OPPOSE_DOT = -0.2
+#: The most grip (total normal force per newton of weight) a holding placement may need.
+_MAX_GRIP_RATIO = 10.0
+#: The object's weight as a unit load (force, torque about the centre of mass; world, z up).
+_WEIGHT = np.array([0.0, 0.0, -1.0, 0.0, 0.0, 0.0])
 
 
 @dataclass(frozen=True)
@@ -85,6 +99,7 @@ class GenericGrasp:
     surface_m: dict[str, float]
     touching: tuple[str, ...]
     cost: float
+    grip_ratio: float
 
 
 class _Sdf:
@@ -169,19 +184,27 @@ def _placements(verts: Array, centre: Array, rots: Array) -> tuple[Array, Array]
     return pos, rots[r]
 
 
-def search_grasp(robot: Hand, human: HumanHand, corr: Correspondence, scale: float, mesh: Any,
-                 obj_pos: Array, obj_rot: Array, press_m: float) -> GenericGrasp:
-    """The best generic grasp of ``mesh`` (object frame; the object at ``obj_pos``,
-    ``obj_rot`` in the world, resting on a table at its lowest point) for robot hand
-    ``robot`` driven by operator hand ``human`` through ``corr`` with fingertip ``scale``
-    (module docstring)."""
-    verts = np.asarray(mesh.vertices) @ obj_rot.T + obj_pos
-    sdf = _Sdf(verts, np.asarray(mesh.vertex_normals) @ obj_rot.T)
-    table_z = float(verts[:, 2].min())
-    lo, hi = verts.min(axis=0), verts.max(axis=0)
-    pos, rots = _placements(verts, 0.5 * (lo + hi), _frames())
+@dataclass(frozen=True)
+class _Scored:
+    """Every placement (N) scored for the five fingers (FINGERS order): the human poses along
+    the closure (L levels), each finger's chosen level (N, 5), its mapped tip's signed
+    distance to the wanted depth at every level (N, L, 5, metres), the reachable robot pulp
+    point at the chosen level (N, 5, 3, world) with the surface's outward normal there
+    (N, 5, 3), which fingers touch (N, 5), the placement cost (N,; inf: rejected)."""
 
-    # the hand at every closure level, mapped into frame_palm: (L, 26, 3)
+    poses: list[HandPose]
+    level: Array
+    err: Array
+    points: Array
+    normals: Array
+    touch: Array
+    cost: Array
+
+
+def _score(robot: Hand, human: HumanHand, corr: Correspondence, scale: float, sdf: _Sdf,
+           table_z: float, pos: Array, rots: Array, press_m: float) -> _Scored:
+    """Every placement, each finger closed along the open → power-grasp path to its level, its
+    cost and rejections (module docstring)."""
     poses = [lerp_pose(HandPose.relaxed(), HandPose.power(), float(s)) for s in _LEVELS]
     joints = np.array([human.joints_in_wrist(p)[0] for p in poses])
     mapped = corr.p_pw + scale * joints @ corr.r_pw.T
@@ -190,7 +213,8 @@ def search_grasp(robot: Hand, human: HumanHand, corr: Correspondence, scale: flo
     # where the robot pulp sites can go: the reachable point nearest each mapped tip
     tip_idx = [JOINT_INDEX[f"{f}_tip"] for f in FINGERS]
     reach, links = _reachable(robot, corr, mapped[:, tip_idx])             # (L, 5, 3)
-    tip_sd, tip_normals = sdf(pos[:, None, None] + np.einsum("nij,lkj->nlki", rots, reach))
+    reach_w = pos[:, None, None] + np.einsum("nij,lkj->nlki", rots, reach)  # (N, L, 5, 3)
+    tip_sd, tip_normals = sdf(reach_w)
     n_pl, n_lv = len(pos), len(_LEVELS)
     err = tip_sd + press_m                                                 # (N, L, 5)
     # each finger closes to the first level whose tip is press_m inside, or fully
@@ -202,7 +226,7 @@ def search_grasp(robot: Hand, human: HumanHand, corr: Correspondence, scale: flo
     level = np.where(take_prev, prev, first)
     pick = (np.arange(n_pl)[:, None], level, np.arange(5)[None, :])
     tip_err = np.abs(err[pick])                                            # (N, 5)
-    tip_n = tip_normals[pick]                                   # (N, 5, 3)
+    tip_n = tip_normals[pick]                                              # (N, 5, 3)
     # per robot finger at its level: its links' deepest point in the object, lowest point
     link_depth, finger_z = np.zeros((n_pl, 5)), np.full((n_pl, 5), np.inf)
     for k, pts in enumerate(links):
@@ -225,18 +249,54 @@ def search_grasp(robot: Hand, human: HumanHand, corr: Correspondence, scale: flo
           & (link_depth.max(axis=1) < _LINK_DEPTH_M)
           & (world[:, 0, :, 2].min(axis=1) > table_z + _TABLE_CLEAR_M)
           & (finger_z.min(axis=1) > table_z + _TABLE_CLEAR_M))
-    cost = np.where(ok, cost, np.inf)
-    i = int(np.argmin(cost))
-    if not np.isfinite(cost[i]):
+    return _Scored(poses=poses, level=level, err=err, points=reach_w[pick], normals=tip_n,
+                     touch=touch, cost=np.where(ok, cost, np.inf))
+
+
+def _grip_ratio(c: _Scored, i: int, com_m: Array, friction: float) -> float:
+    """Least total normal force, per newton of weight, with which placement ``i``'s touching
+    fingertips hold the object up (:func:`sim.metrics.holding.min_grip_force_n`, one contact
+    per finger, sliding ``friction``); inf when they cannot."""
+    k = np.flatnonzero(c.touch[i])
+    return min_grip_force_n(c.points[i, k], -c.normals[i, k], com_m, _WEIGHT, friction)
+
+
+def search_grasp(robot: Hand, human: HumanHand, corr: Correspondence, scale: float, mesh: Any,
+                 obj_pos: Array, obj_rot: Array, press_m: float, com_m: Array,
+                 friction: float) -> GenericGrasp:
+    """The best generic grasp of ``mesh`` (object frame; the object at ``obj_pos``,
+    ``obj_rot`` in the world, resting on a table at its lowest point, its centre of mass at
+    ``com_m`` in the world) for robot hand ``robot`` driven by operator hand ``human``
+    through ``corr`` with fingertip ``scale`` (module docstring). ``friction``: the sliding
+    friction the operator counts on to hold the object up."""
+    verts = np.asarray(mesh.vertices) @ obj_rot.T + obj_pos
+    sdf = _Sdf(verts, np.asarray(mesh.vertex_normals) @ obj_rot.T)
+    table_z = float(verts[:, 2].min())
+    lo, hi = verts.min(axis=0), verts.max(axis=0)
+    pos, rots = _placements(verts, 0.5 * (lo + hi), _frames())
+    c = _score(robot, human, corr, scale, sdf, table_z, pos, rots, press_m)
+    order = np.argsort(c.cost, kind="stable")
+    order = order[np.isfinite(c.cost[order])]
+    if not len(order):
         raise ValueError("no generic grasp placement keeps the palm out of the object and the "
                          "table with the thumb opposing a finger")
+    # the best-fitting placement whose fingertips can hold the object up, else the best-fitting
+    i, ratio = int(order[0]), float("inf")
+    for cand in order:
+        r = _grip_ratio(c, int(cand), com_m, friction)
+        if r <= _MAX_GRIP_RATIO:
+            i, ratio = int(cand), r
+            break
+    level = c.level[i]
     pose = HandPose.from_vector(np.concatenate(
-        [poses[level[i, 0]].thumb, *(poses[level[i, k + 1]].fingers[f]
-                                     for k, f in enumerate(LONG_FINGERS))]))
-    surface = {f: float(err[i, level[i, k], k] - press_m) for k, f in enumerate(FINGERS)}
-    touching = tuple(f for k, f in enumerate(FINGERS) if touch[i, k])
-    logger.info("generic grasp: %d of %d placements valid; best cost %.4f, palm normal %s, "
-                "fingers %s, touching %s", int(ok.sum()), n_pl, cost[i],
-                np.round(rots[i][:, 1], 2).tolist(), np.round(rots[i][:, 2], 2).tolist(), touching)
+        [c.poses[level[0]].thumb, *(c.poses[level[k + 1]].fingers[f]
+                                    for k, f in enumerate(LONG_FINGERS))]))
+    surface = {f: float(c.err[i, level[k], k] - press_m) for k, f in enumerate(FINGERS)}
+    touching = tuple(f for k, f in enumerate(FINGERS) if c.touch[i, k])
+    logger.info("generic grasp: %d of %d placements valid; cost %.4f (rank %d of the fitting), "
+                "grip ratio %.2f, palm normal %s, fingers %s, touching %s", len(order),
+                len(c.cost), c.cost[i], int(np.flatnonzero(order == i)[0]), ratio,
+                np.round(rots[i][:, 1], 2).tolist(), np.round(rots[i][:, 2], 2).tolist(),
+                touching)
     return GenericGrasp(palm_pos_m=pos[i], palm_rot=rots[i], pose=pose, surface_m=surface,
-                        touching=touching, cost=float(cost[i]))
+                        touching=touching, cost=float(c.cost[i]), grip_ratio=ratio)

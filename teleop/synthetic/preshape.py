@@ -51,15 +51,18 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from teleop.messages import JOINT_INDEX, OPENXR_JOINTS
-from teleop.synthetic.human_hand import LONG_FINGERS, HandPose, HumanHand
+from teleop.synthetic.human_hand import FINGER_LIMITS, LONG_FINGERS, THUMB_LIMITS, HandPose, HumanHand
 
-__all__ = ["OPENINGS", "Obstacles", "ReachPlan", "approach_directions", "contact_progress",
-           "plan_reach"]
+__all__ = ["OPENINGS", "WIDER", "Obstacles", "ReachPlan", "approach_directions",
+           "contact_progress", "plan_reach", "reach_clearance_m"]
 
 Array = np.ndarray
 
 #: Opening fractions tried per finger, widest first (1: the relaxed open hand, 0: the grasp).
 OPENINGS: tuple[float, ...] = tuple(float(x) for x in np.round(np.linspace(1.0, 0.0, 11), 2))
+#: Openings past the relaxed hand (the same line extended, within the joint limits), tried,
+#: least first, for a finger that no opening up to the relaxed hand keeps clear.
+WIDER: tuple[float, ...] = (1.25, 1.5, 1.75, 2.0)
 
 #: Slack on the object clearance (metres): the vertex approximation of the surface.
 _SLACK_M = 0.002
@@ -122,6 +125,35 @@ def approach_directions(palm_normal: Array, finger_dir: Array) -> list[Array]:
     return out
 
 
+_LOWER = np.concatenate([THUMB_LIMITS[0], *[FINGER_LIMITS[0]] * len(LONG_FINGERS)])
+_UPPER = np.concatenate([THUMB_LIMITS[1], *[FINGER_LIMITS[1]] * len(LONG_FINGERS)])
+
+
+def _opened(grasp: HandPose, relaxed: HandPose, a: float) -> HandPose:
+    """The hand ``a`` of the way from ``grasp`` to ``relaxed`` (past it for a > 1), within the
+    human joint limits."""
+    g = grasp.vector()
+    return HandPose.from_vector(np.clip(g + a * (relaxed.vector() - g), _LOWER, _UPPER))
+
+
+def reach_clearance_m(at_grasp_m: Array, object_clearance_m: float, pressed: bool) -> Array:
+    """How far (metres) each hand joint must keep off the object during the reach, given its
+    clearance in the grasp ``at_grasp_m``: ``object_clearance_m``, or less where the grasp
+    itself puts the joint nearer, and, for a ``pressed`` grasp, never less than touching.
+
+    Why. A generic grasp closes the fingertips ``press_depth_m`` *past* the surface on purpose
+    (the operator squeezes until the object stops them): that depth is the squeeze, not where
+    the hand may be on its way, and taking it as the allowance let the pre-shaped thumb slide
+    1–2 cm deep through a tuna can or a pudding box during the whole reach (the simulated
+    thumb then shoved the object 1–3 cm before the hand closed). A reference grasp is imitated
+    as it is: where its fitted fingers end inside the surface (the human model's finger radius
+    on the robot's pulp site), they may come that near on the way — held to touching, the
+    fingers that wrap a soup can from above, pointing at the table, had no opening left that
+    cleared both and went 1 cm into the table instead."""
+    floor = np.maximum(at_grasp_m, 0.0) if pressed else at_grasp_m
+    return np.minimum(object_clearance_m, floor)
+
+
 def _with_fingers(base: HandPose, angles: dict[str, Array]) -> HandPose:
     return HandPose({f: angles.get(f, base.fingers[f]) for f in LONG_FINGERS},
                     angles.get("thumb", base.thumb))
@@ -133,11 +165,12 @@ def _angles(pose: HandPose, finger: str) -> Array:
 
 def plan_reach(human: HumanHand, grasp: HandPose, path_for: PathFor, obstacles: Obstacles,
                table_clearance_m: float, object_clearance_m: float,
-               directions: Sequence[Array]) -> ReachPlan:
+               directions: Sequence[Array], pressed: bool = False) -> ReachPlan:
     """The best approach direction of ``directions`` and its pre-shape (module docstring).
 
     ``path_for(direction)`` gives the wrist path of the motion that backs off along it and
-    the sample times of its reach and its closure."""
+    the sample times of its reach and its closure; ``pressed``: the grasp closes its
+    fingertips past the surface (:func:`reach_clearance_m`)."""
     relaxed = HandPose.relaxed()
     radii = human.radii
     best: tuple[tuple[int, float], ReachPlan] | None = None
@@ -147,14 +180,14 @@ def plan_reach(human: HumanHand, grasp: HandPose, path_for: PathFor, obstacles: 
         close = [path(float(t)) for t in close_t]
         p_g, r_g, _ = path(float(close_t[-1]))
         at_grasp = human.joints(grasp, p_g, r_g)[0]
-        need = np.minimum(object_clearance_m,
-                          obstacles.object_clearance_m(at_grasp) - radii) - _SLACK_M
+        need = reach_clearance_m(obstacles.object_clearance_m(at_grasp) - radii,
+                                 object_clearance_m, pressed) - _SLACK_M
         floor = obstacles.table_z_m + np.minimum(table_clearance_m, at_grasp[:, 2] - radii
                                                  - obstacles.table_z_m) - _SLACK_M
         table_low: dict[float, Array] = {}
         object_low: dict[float, Array] = {}
-        for a in OPENINGS:   # all fingers at opening a: fingers are independent chains
-            pre = HandPose.from_vector(grasp.vector() + a * (relaxed.vector() - grasp.vector()))
+        for a in OPENINGS + WIDER:   # all fingers at opening a: fingers are independent chains
+            pre = _opened(grasp, relaxed, a)
             reach_pts = np.stack([human.joints(pre, p, r)[0] for p, r, _ in reach])
             close_pts = np.stack([human.joints(HandPose.from_vector(
                 pre.vector() + c * (grasp.vector() - pre.vector())), p, r)[0]
@@ -166,13 +199,12 @@ def plan_reach(human: HumanHand, grasp: HandPose, path_for: PathFor, obstacles: 
         for f in _FINGERS:
             rows = _ROWS[f]
             margin = {a: min(float(table_low[a][rows].min()), float(object_low[a][rows].min()))
-                      for a in OPENINGS}
-            ok = [a for a in OPENINGS if margin[a] >= 0.0]
-            a = ok[0] if ok else max(OPENINGS, key=lambda x: margin[x])
+                      for a in OPENINGS + WIDER}
+            ok = [a for a in OPENINGS + WIDER if margin[a] >= 0.0]
+            a = ok[0] if ok else max(margin, key=lambda x: margin[x])
             openings[f], clear[f] = a, bool(ok)
             margins.append(margin[a])
-            g, o = _angles(grasp, f), _angles(relaxed, f)
-            chosen[f] = g + a * (o - g)
+            chosen[f] = _angles(_opened(grasp, relaxed, a), f)
         palm = min(float(table_low[0.0][_PALM_ROWS].min()), float(object_low[0.0][_PALM_ROWS].min()))
         clear["palm"] = palm >= 0.0
         score = (sum(clear.values()), min(min(margins), palm))

@@ -76,11 +76,12 @@ def synthesize(object_name: str, *, hand: Hand | str, seed: int = 0,
                else rpy_deg_to_mat(cfg.object_rpy_deg))
     target = grasp_target(robot, human, corr, scale, object_name, obj_pos, obj_rot,
                           grasp_name=grasp_name, snap_m=cfg.tip_surface_snap_m,
-                          press_m=cfg.press_depth_m)
+                          press_m=cfg.press_depth_m, grip_friction=cfg.grip_friction)
 
     motion = GraspMotion.plan(cfg, target.wrist_pos_m, target.wrist_rot, target.palm_rot,
                               target.pose, human=human,
-                              obstacles=_obstacles(object_name, obj_pos, obj_rot))
+                              obstacles=_obstacles(object_name, obj_pos, obj_rot),
+                              pressed=target.reference is None and cfg.press_depth_m > 0.0)
     rng = np.random.default_rng(seed)
     frames, tracked = observe(motion, human, cfg, rng, source=f"synth:{object_name}:seed{seed}")
     phases, t0 = motion.phases, DEVICE_T0_S
