@@ -112,7 +112,7 @@ class _Sdf:
     def __call__(self, pts: Array) -> tuple[Array, Array]:
         """Signed distances (...) and the outward normals (..., 3) there, for points (..., 3)."""
         flat = pts.reshape(-1, 3)
-        dist, idx = self._tree.query(flat)
+        dist, idx = self._tree.query(flat, workers=-1)
         n = self._n[idx]
         sign = np.where(np.einsum("ij,ij->i", flat - self._v[idx], n) >= 0.0, 1.0, -1.0)
         return (sign * dist).reshape(pts.shape[:-1]), n.reshape(pts.shape)
@@ -208,8 +208,8 @@ def _score(robot: Hand, human: HumanHand, corr: Correspondence, scale: float, sd
     poses = [lerp_pose(HandPose.relaxed(), HandPose.power(), float(s)) for s in _LEVELS]
     joints = np.array([human.joints_in_wrist(p)[0] for p in poses])
     mapped = corr.p_pw + scale * joints @ corr.r_pw.T
-    world = pos[:, None, None] + np.einsum("nij,lkj->nlki", rots, mapped)  # (N, L, 26, 3)
-    sd = sdf(world)[0]
+    # the open hand (level 0) in the world: (N, 26, 3)
+    open_hand = pos[:, None] + np.einsum("nij,kj->nki", rots, mapped[0])
     # where the robot pulp sites can go: the reachable point nearest each mapped tip
     tip_idx = [JOINT_INDEX[f"{f}_tip"] for f in FINGERS]
     reach, links = _reachable(robot, corr, mapped[:, tip_idx])             # (L, 5, 3)
@@ -245,9 +245,9 @@ def _score(robot: Hand, human: HumanHand, corr: Correspondence, scale: float, sd
     palm_w = pos[:, None] + np.einsum("nij,kj->nki", rots, box)
     ok = ((sdf(palm_w)[0].min(axis=1) > _PALM_CLEAR_M)
           & (palm_w[..., 2].min(axis=1) > table_z + _TABLE_CLEAR_M)
-          & (-sd[:, 0].min(axis=1) < _OPEN_DEPTH_M)
+          & (-sdf(open_hand)[0].min(axis=1) < _OPEN_DEPTH_M)
           & (link_depth.max(axis=1) < _LINK_DEPTH_M)
-          & (world[:, 0, :, 2].min(axis=1) > table_z + _TABLE_CLEAR_M)
+          & (open_hand[..., 2].min(axis=1) > table_z + _TABLE_CLEAR_M)
           & (finger_z.min(axis=1) > table_z + _TABLE_CLEAR_M))
     return _Scored(poses=poses, level=level, err=err, points=reach_w[pick], normals=tip_n,
                      touch=touch, cost=np.where(ok, cost, np.inf))

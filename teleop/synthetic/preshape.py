@@ -88,7 +88,7 @@ class Obstacles:
     def object_clearance_m(self, points_m: Array) -> Array:
         """Signed distance (metres, negative inside) of points (..., 3) from the surface."""
         flat = points_m.reshape(-1, 3)
-        d, i = self._tree.query(flat)
+        d, i = self._tree.query(flat, workers=-1)
         side = np.einsum("ij,ij->i", flat - self.points_m[i], self.normals[i])
         return (np.where(side < 0.0, -d, d)).reshape(points_m.shape[:-1])
 
