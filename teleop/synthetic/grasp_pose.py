@@ -29,6 +29,7 @@ import numpy as np
 from sim.errors import ConfigError
 from sim.hand.model import Hand
 from sim.transforms import quat_to_mat
+from teleop.synthetic.config import SynthConfig
 from teleop.synthetic.correspondence import Correspondence
 from teleop.synthetic.grasp_search import search_grasp
 from teleop.synthetic.human_hand import LONG_FINGERS, HandPose, HumanHand, finger_of
@@ -61,7 +62,8 @@ class GraspTarget:
 
 def grasp_target(robot: Hand, human: HumanHand, corr: Correspondence, scale: float,
                  object_name: str, obj_pos: Array, obj_rot: Array, *, grasp_name: str | None,
-                 snap_m: float, press_m: float = 0.0, grip_friction: float = 0.5) -> GraspTarget:
+                 snap_m: float, press_m: float = 0.0,
+                 grip_friction: float = SynthConfig.grip_friction) -> GraspTarget:
     """The operator's grasp of ``object_name`` (world pose ``obj_pos``, ``obj_rot``) for robot
     hand ``robot``: imitating its reference grasp for the object (or ``grasp_name``), else a
     generic side grasp (module docstring). ``scale``: the retargeter's fingertip scale for this

@@ -90,8 +90,10 @@ _WEIGHT = np.array([0.0, 0.0, -1.0, 0.0, 0.0, 0.0])
 class GenericGrasp:
     """The search's choice: frame_palm in the world (palm_pos_m, palm_rot), the hand pose,
     per human finger the signed distance of its mapped tip to the surface (``surface_m``,
-    metres, negative inside), which fingers touch, and the score (metres-like; lower is
-    better)."""
+    metres, negative inside), which fingers touch, the score (metres-like; lower is
+    better) and the grip ratio (total normal force per newton of weight with which the
+    touching fingertips hold the object up; inf where no fitting placement could within
+    :data:`_MAX_GRIP_RATIO` and the best-fitting one was taken)."""
 
     palm_pos_m: Array
     palm_rot: Array
@@ -250,7 +252,7 @@ def _score(robot: Hand, human: HumanHand, corr: Correspondence, scale: float, sd
           & (open_hand[..., 2].min(axis=1) > table_z + _TABLE_CLEAR_M)
           & (finger_z.min(axis=1) > table_z + _TABLE_CLEAR_M))
     return _Scored(poses=poses, level=level, err=err, points=reach_w[pick], normals=tip_n,
-                     touch=touch, cost=np.where(ok, cost, np.inf))
+                   touch=touch, cost=np.where(ok, cost, np.inf))
 
 
 def _grip_ratio(c: _Scored, i: int, com_m: Array, friction: float) -> float:
