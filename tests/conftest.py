@@ -39,3 +39,11 @@ def without_grip_boost(config):
     ``grip_safety``): for tests of how the grip is sized before the boost scales it."""
     return dataclasses.replace(config, common=dataclasses.replace(
         config.common, max_grip_safety=config.common.grip_safety))
+
+
+def without_settled_modes(config):
+    """``config`` (a ValidateConfig) with the ``dgb`` pregrasp's free modes left at the
+    grasp's split (``[dgb] settle_free_modes`` off): for tests of the benchmark's squeeze
+    mechanisms measured before the settling, and of the settling itself."""
+    return dataclasses.replace(config, dgb=dataclasses.replace(config.dgb,
+                                                               settle_free_modes=False))

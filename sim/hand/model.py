@@ -154,6 +154,12 @@ class Hand:
             raise GraspInputError(f"{what}: contains NaN or infinite values")
         return arr
 
+    @property
+    def couplings(self) -> list[tuple[int, int, float]]:
+        """The config's coupled joints as (follower, leader, coefficient), indices into the
+        joint vector: follower = coefficient · leader in the hand data (``coupled_to``)."""
+        return list(self._coupling)
+
     def fill_coupled(self, q: np.ndarray) -> np.ndarray:
         """Set each coupled follower from its leader (the paper's FJ1 = FJ2)."""
         q = np.array(q, dtype=float)

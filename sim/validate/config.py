@@ -79,7 +79,9 @@ class SixDirParams:
 @dataclass(frozen=True)
 class DgbParams:
     """DexGraspBench's fc evaluation (``[dgb]``): its own contacts, servos, object mass (None:
-    the object's real mass), solver, penetration filter, closing stages and pushes."""
+    the object's real mass), solver, penetration filter, closing stages and pushes, and
+    whether the ``dexaug`` convention's pregrasp starts the fingers' free modes where pressing
+    leaves them (:mod:`sim.validate.free_modes`)."""
 
     object_mass_kg: float | None
     contact: ContactParams
@@ -99,6 +101,7 @@ class DgbParams:
     max_displacement_m: float
     max_rotation_rad: float
     squeeze_convention: str
+    settle_free_modes: bool
 
 
 def _contact(sec: Section) -> ContactParams:
@@ -118,7 +121,8 @@ def _load_dgb(sec: Section) -> DgbParams:
                         "noslip_iterations", "solver_iterations", "max_penetration_m",
                         "contact_search_m", "stage_increments", "steps_per_increment",
                         "force_per_kg", "push_time_s", "check_every_steps",
-                        "max_displacement_m", "max_rotation_deg", "squeeze_convention"})
+                        "max_displacement_m", "max_rotation_deg", "squeeze_convention",
+                        "settle_free_modes"})
     mass = sec.data.get("object_mass_kg")
     if mass == "real":
         mass_kg = None
@@ -143,7 +147,7 @@ def _load_dgb(sec: Section) -> DgbParams:
         check_every_steps=sec.int("check_every_steps", min=1),
         max_displacement_m=sec.float("max_displacement_m", min=0.0),
         max_rotation_rad=np.deg2rad(sec.float("max_rotation_deg", min=0.0, max=180.0)),
-        squeeze_convention=convention)
+        squeeze_convention=convention, settle_free_modes=sec.bool("settle_free_modes"))
 
 
 def _choice(sec: Section, key: str, allowed: tuple[str, ...]) -> str:

@@ -47,6 +47,7 @@ stiffness times a millimetre-scale placement error, which is most of a light obj
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import mujoco
@@ -57,7 +58,8 @@ from sim.metrics.holding import HoldLoads, min_grip_force_n
 from sim.validate.config import GRAVITY_MPS2, CommonParams
 from sim.validate.contact_forces import balanced_normal_forces
 from sim.validate.effort import closest_per_body, finger_moment_arms, servo_force_limits
-from sim.world.contacts import Contacts
+from sim.validate.free_modes import free_modes, settled
+from sim.world.contacts import Contacts, contacts_between
 from sim.world.scene import Scene
 
 __all__ = ["GraspTargets", "finger_joint_mask", "grip_boost", "grip_force_n", "holds_every_load",
@@ -71,6 +73,10 @@ _JAC_DAMPING_M2 = 1e-4
 _STIFFNESS_DAMPING = 1e-3
 # smallest lever arm (metres) credited to a grasp's friction torque: about a fingertip pad
 _MIN_LEVER_M = 0.005
+# a pregrasp may put the hand's links into each other this much deeper (metres) than the grasp
+# has them, and its back-off is tried at these shares of the full one before none
+_SELF_TOLERANCE_M = 0.001
+_BACKOFF_SHARES = (1.0, 0.5, 0.25)
 
 
 @dataclass(frozen=True)
@@ -313,7 +319,9 @@ def targets_from_contacts(scene: Scene, hand: Hand, q: np.ndarray, near: Contact
                           common: CommonParams, finger_mask: np.ndarray,
                           loads: HoldLoads,
                           act_stiffness: np.ndarray | None = None,
-                          act_limits: np.ndarray | None = None) -> GraspTargets:
+                          act_limits: np.ndarray | None = None,
+                          settle_modes: bool = False,
+                          self_clear: bool = False) -> GraspTargets:
     """Pregrasp and squeeze joint vectors of the grasp placed in ``scene`` at joints ``q``,
     from its hand–object contacts and near misses ``near`` (distances in metres).
 
@@ -330,8 +338,13 @@ def targets_from_contacts(scene: Scene, hand: Hand, q: np.ndarray, near: Contact
     The grip is then scaled up by :func:`grip_boost` as far as the servos' squeeze forces
     ``k·M·Δq`` stay within ``servo_headroom`` of their limits (``act_limits``, per hand
     actuator; default the scene's own forceranges).
-    ``act_stiffness``: see :func:`joint_stiffness`. No body near the object gives
-    ``n_bodies_near = 0`` and ``q`` for both targets.
+    ``act_stiffness``: see :func:`joint_stiffness`. ``settle_modes`` (the ``dgb`` protocol's
+    ``[dgb] settle_free_modes``): the pregrasp's tendon-shared joint pairs are started where
+    these contacts will press them (:func:`sim.validate.free_modes.settled`; the servo's sum
+    and the other targets unchanged). ``self_clear`` (the ``dgb`` protocol, which refuses a
+    pregrasp whose links are 1 cm into each other): the pregrasp puts the hand's links no
+    deeper into each other than the grasp has them (:func:`_clear_of_itself`). No body near
+    the object gives ``n_bodies_near = 0`` and ``q`` for both targets.
     """
     m, d = scene.model, scene.data
     rows, surface_rows, gaps, closest, normals = [], [], [], [], []
@@ -369,4 +382,41 @@ def targets_from_contacts(scene: Scene, hand: Hand, q: np.ndarray, near: Contact
     onto = normal_first_motion(jac, np.vstack(surface_rows) * finger_mask,
                                gaps + common.squeeze_depth_m)
     squeeze = hand.clip(q + onto + boost * deflection)
+    modes = free_modes(scene, hand, arm) if settle_modes else []
+
+    def settle(p: np.ndarray) -> np.ndarray:
+        return settled(p, modes, -(jac.T @ forces), hand.lower, hand.upper)
+
+    pre = _clear_of_itself(scene, q, pre, settle) if self_clear else settle(pre)
     return GraspTargets(pre, squeeze, len(rows), boost * force_n, hand.clip(q + pinv @ gaps))
+
+
+def _self_penetration_m(scene: Scene, q: np.ndarray) -> float:
+    """Deepest hand–hand penetration (metres, 0 when none) with the hand at joints ``q``."""
+    scene.set_hand_joints(q)
+    mujoco.mj_fwdPosition(scene.model, scene.data)
+    return contacts_between(scene.model, scene.data, scene.hand_geom_mask,
+                            scene.hand_geom_mask).max_penetration_m
+
+
+def _clear_of_itself(scene: Scene, q: np.ndarray, pre: np.ndarray,
+                     settle: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
+    """The pregrasp ``pre`` of the grasp at ``q``, settled by ``settle``, unless that puts the
+    hand's links into each other deeper (by ``_SELF_TOLERANCE_M``) than the grasp has them:
+    then the same without the settling, then with the back-off along the normals halved, down
+    to none. Why: the back-off moves each contact straight back, and a finger moved back past
+    its neighbour ends up inside it (on the authors' five-finger sugar box, 6 of 200 grasps
+    whose own fingers overlap by at most 3 mm got pregrasps 10–14 mm into each other, which
+    the benchmark's 1 cm penetration check refuses). Leaves ``scene`` at ``q``."""
+    allowed_m = _self_penetration_m(scene, q) + _SELF_TOLERANCE_M
+    out = q
+    for share in _BACKOFF_SHARES:
+        back = q + share * (pre - q)
+        candidates = (settle(back), back)
+        fits = [c for c in candidates if _self_penetration_m(scene, c) <= allowed_m]
+        if fits:
+            out = fits[0]
+            break
+    scene.set_hand_joints(q)
+    mujoco.mj_fwdPosition(scene.model, scene.data)
+    return out
