@@ -406,7 +406,7 @@ def _clear_of_itself(scene: Scene, q: np.ndarray, pre: np.ndarray,
     then the same without the settling, then with the back-off along the normals halved, down
     to none. Why: the back-off moves each contact straight back, and a finger moved back past
     its neighbour ends up inside it (on the authors' five-finger sugar box, 6 of 200 grasps
-    whose own fingers overlap by at most 3 mm got pregrasps 10–14 mm into each other, which
+    whose own fingers overlap by 0–5 mm got pregrasps 10–14 mm into each other, which
     the benchmark's 1 cm penetration check refuses). Leaves ``scene`` at ``q``."""
     allowed_m = _self_penetration_m(scene, q) + _SELF_TOLERANCE_M
     out = q
