@@ -143,7 +143,7 @@ def test_the_benchmarks_pregrasp_keeps_the_fingers_out_of_each_other(shadow, mon
     import sim.validate.targets as targets_module
 
     if not clear:   # the pregrasp as it was: every contact backed off in full
-        monkeypatch.setattr(targets_module, "_clear_of_itself",
+        monkeypatch.setattr(targets_module, "clear_of_itself",
                             lambda scene, q, pre, settle: settle(pre))
     v = Validator(shadow, load_object("004_sugar_box"))
     stages = v.stages(SUGAR_BOX_CLOSE_FINGERS, "dexaug", sized_for="dgb")

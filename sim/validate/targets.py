@@ -47,7 +47,6 @@ stiffness times a millimetre-scale placement error, which is most of a light obj
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import mujoco
@@ -59,7 +58,8 @@ from sim.validate.config import GRAVITY_MPS2, CommonParams
 from sim.validate.contact_forces import balanced_normal_forces
 from sim.validate.effort import closest_per_body, finger_moment_arms, servo_force_limits
 from sim.validate.free_modes import free_modes, settled
-from sim.world.contacts import Contacts, contacts_between
+from sim.validate.self_clearance import clear_of_itself
+from sim.world.contacts import Contacts
 from sim.world.scene import Scene
 
 __all__ = ["GraspTargets", "finger_joint_mask", "grip_boost", "grip_force_n", "holds_every_load",
@@ -73,10 +73,6 @@ _JAC_DAMPING_M2 = 1e-4
 _STIFFNESS_DAMPING = 1e-3
 # smallest lever arm (metres) credited to a grasp's friction torque: about a fingertip pad
 _MIN_LEVER_M = 0.005
-# a pregrasp may put the hand's links into each other this much deeper (metres) than the grasp
-# has them, and its back-off is tried at these shares of the full one before none
-_SELF_TOLERANCE_M = 0.001
-_BACKOFF_SHARES = (1.0, 0.5, 0.25)
 
 
 @dataclass(frozen=True)
@@ -343,8 +339,9 @@ def targets_from_contacts(scene: Scene, hand: Hand, q: np.ndarray, near: Contact
     these contacts will press them (:func:`sim.validate.free_modes.settled`; the servo's sum
     and the other targets unchanged). ``self_clear`` (the ``dgb`` protocol, which refuses a
     pregrasp whose links are 1 cm into each other): the pregrasp puts the hand's links no
-    deeper into each other than the grasp has them (:func:`_clear_of_itself`). No body near
-    the object gives ``n_bodies_near = 0`` and ``q`` for both targets.
+    deeper into each other than the grasp has them
+    (:func:`sim.validate.self_clearance.clear_of_itself`). No body near the object gives
+    ``n_bodies_near = 0`` and ``q`` for both targets.
     """
     m, d = scene.model, scene.data
     rows, surface_rows, gaps, closest, normals = [], [], [], [], []
@@ -387,36 +384,6 @@ def targets_from_contacts(scene: Scene, hand: Hand, q: np.ndarray, near: Contact
     def settle(p: np.ndarray) -> np.ndarray:
         return settled(p, modes, -(jac.T @ forces), hand.lower, hand.upper)
 
-    pre = _clear_of_itself(scene, q, pre, settle) if self_clear else settle(pre)
+    pre = clear_of_itself(scene, q, pre, settle) if self_clear else settle(pre)
     return GraspTargets(pre, squeeze, len(rows), boost * force_n, hand.clip(q + pinv @ gaps))
 
-
-def _self_penetration_m(scene: Scene, q: np.ndarray) -> float:
-    """Deepest hand–hand penetration (metres, 0 when none) with the hand at joints ``q``."""
-    scene.set_hand_joints(q)
-    mujoco.mj_fwdPosition(scene.model, scene.data)
-    return contacts_between(scene.model, scene.data, scene.hand_geom_mask,
-                            scene.hand_geom_mask).max_penetration_m
-
-
-def _clear_of_itself(scene: Scene, q: np.ndarray, pre: np.ndarray,
-                     settle: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
-    """The pregrasp ``pre`` of the grasp at ``q``, settled by ``settle``, unless that puts the
-    hand's links into each other deeper (by ``_SELF_TOLERANCE_M``) than the grasp has them:
-    then the same without the settling, then with the back-off along the normals halved, down
-    to none. Why: the back-off moves each contact straight back, and a finger moved back past
-    its neighbour ends up inside it (on the authors' five-finger sugar box, 6 of 200 grasps
-    whose own fingers overlap by 0–5 mm got pregrasps 10–14 mm into each other, which
-    the benchmark's 1 cm penetration check refuses). Leaves ``scene`` at ``q``."""
-    allowed_m = _self_penetration_m(scene, q) + _SELF_TOLERANCE_M
-    out = q
-    for share in _BACKOFF_SHARES:
-        back = q + share * (pre - q)
-        candidates = (settle(back), back)
-        fits = [c for c in candidates if _self_penetration_m(scene, c) <= allowed_m]
-        if fits:
-            out = fits[0]
-            break
-    scene.set_hand_joints(q)
-    mujoco.mj_fwdPosition(scene.model, scene.data)
-    return out

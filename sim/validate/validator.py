@@ -139,23 +139,14 @@ class Validator:
     def derive_targets(self, scene: Scene, q: np.ndarray, down: np.ndarray | None = None, *,
                        sized_for: str = "lift-drop", own_pregrasp: bool = True) -> GraspTargets:
         """Pregrasp and squeeze joint vectors from the contacts near the placed grasp
-        (:func:`sim.validate.targets.targets_from_contacts`; near misses found with a temporary
-        object margin of ``contact_search_m``). ``sized_for`` names the protocol whose load the
-        grip is sized for: ``lift-drop`` — the weight pulling along ``down`` (world unit
-        vector; None: −z), ``[common]`` friction; ``six-dir`` and ``dgb`` — their six pushes
-        (:func:`sim.validate.loads.hold_loads`) with their friction; for ``dgb`` also its
-        servos' stiffness and force limits, read back from its compiled scene, and only the
-        bodies within ``[dgb] contact_search_m`` (it counts every motion as drift) unless those
-        cannot hold every push however they press (then all within ``[common]
-        contact_search_m``: :func:`sim.validate.targets.holds_every_load`). With
-        ``own_pregrasp`` (the ``dexaug`` convention: the pregrasp is the closing's own, not one
-        another convention builds its squeeze from), the ``dgb`` pregrasp settles the fingers'
-        free modes where ``[dgb] settle_free_modes`` says so (:mod:`sim.validate.free_modes`)
-        and keeps the hand's links out of each other (the benchmark refuses a pregrasp 1 cm
-        into itself). Lift-drop keeps the grasp's split and the full back-off: settled it lost
-        774 → 753 of 1,000 passes on five demos' grasps, kept clear 774 → 770. The ``bodex``
-        squeeze (2·grasp − pregrasp) keeps them too: settled and kept clear, the sugar box's
-        ``bodex`` passes fell 138 → 112 of 200."""
+        (:func:`sim.validate.targets.targets_from_contacts`), the grip sized for protocol
+        ``sized_for``: ``lift-drop`` — the weight along ``down`` (None: −z); ``six-dir`` and
+        ``dgb`` — their six pushes (:func:`sim.validate.loads.hold_loads`). ``dgb`` takes its
+        servos from its compiled scene, presses only the bodies within ``[dgb] contact_search_m``
+        unless those cannot hold every push (:func:`sim.validate.targets.holds_every_load`),
+        and for the closing's ``own_pregrasp`` (``dexaug``; ``bodex`` makes its squeeze from the
+        pregrasp) settles the fingers' free modes (:mod:`sim.validate.free_modes`) and keeps the
+        pregrasp out of itself (:mod:`sim.validate.self_clearance`); lift-drop keeps both."""
         if sized_for == "lift-drop":
             loads = weight_loads(scene.obj_mass_kg, scene.data.xipos[scene.obj_body],
                                  self.config.common, down)
@@ -165,11 +156,9 @@ class Validator:
         near = self._near_contacts(scene, None if dgb is None else self.config.dgb.contact_search_m)
         if dgb is not None and not holds_every_load(near, loads):
             near = self._near_contacts(scene)
-        servos = {} if dgb is None else {"act_stiffness": servo_stiffness_from(dgb, scene),
-                                         "act_limits": servo_limits_from(dgb, scene),
-                                         "settle_modes": (own_pregrasp
-                                                          and self.config.dgb.settle_free_modes),
-                                         "self_clear": own_pregrasp}
+        servos = {} if dgb is None else {
+            "act_stiffness": servo_stiffness_from(dgb, scene), "act_limits": servo_limits_from(dgb, scene),
+            "settle_modes": own_pregrasp and self.config.dgb.settle_free_modes, "self_clear": own_pregrasp}
         return targets_from_contacts(scene, self.hand, q, near, self.config.common, self._finger_mask,
                                      loads, **servos)
 
@@ -185,8 +174,7 @@ class Validator:
         def derive(q: np.ndarray) -> GraspTargets:
             scene = self.scene("lift-drop")
             self._place(scene, grasp, q)
-            return self.derive_targets(scene, q, sized_for=sized_for,
-                                       own_pregrasp=convention == "dexaug")
+            return self.derive_targets(scene, q, sized_for=sized_for, own_pregrasp=convention == "dexaug")
 
         return grasp_stages(grasp, convention, derive, through_touch=sized_for == "dgb")
 
