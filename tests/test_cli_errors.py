@@ -216,6 +216,14 @@ def _group_processes(pgid: int) -> list[str]:
             if line.strip() and not line.lstrip().startswith("Z")]
 
 
+def _sigint_as_a_terminal_gives_it() -> None:
+    """In the child before exec: SIGINT at its default, as a terminal's foreground command
+    has it. A suite started as a background job of a non-interactive shell inherits SIGINT
+    ignored (POSIX), Python then keeps ignoring it, and the test would measure the launcher
+    instead of the command."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @needs_menagerie
 @needs_ycb
 @pytest.mark.parametrize(("signum", "to_group", "status"), [
@@ -233,7 +241,8 @@ def test_interrupting_fsg_exits_within_seconds(tmp_path: Path, signum: int, to_g
          "300", "--gallery", "0", "--workers", "2", "--validate", "none", "--out",
          str(tmp_path / "out")],
         cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-        start_new_session=True, env={**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")})
+        start_new_session=True, env={**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")},
+        preexec_fn=_sigint_as_a_terminal_gives_it)
     try:
         deadline = time.monotonic() + 120.0   # FSG runs once the fork server has two workers
         while sum("forkserver" in a for a in _group_processes(proc.pid)) < 3:
