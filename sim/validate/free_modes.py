@@ -6,9 +6,9 @@ loads the two joints unequally (the joint farther from the fingertip has the lon
 nothing but a joint limit holds the difference, so under a squeeze the split runs toward a
 limit. Measured on the Shadow in the ``dgb`` protocol: a pressed middle finger's J2 went from
 0.26 rad to its lower limit (0.01) while J1 curled from 0.22 to 0.45 rad, the fingertip
-rolling and sliding across the surface and dragging the free object with it; with the two joints rigidly tied
-(an experiment, not the benchmark's model) 14 of 40 failing screwdriver grasps and 18 of 40
-failing sugar-box grasps passed.
+rolling and sliding across the surface and dragging the free object with it; with the two
+joints rigidly tied (an experiment, not the benchmark's model) 14 of 40 failing screwdriver
+grasps and 18 of 40 failing sugar-box grasps passed.
 
 :func:`free_modes` finds, from the compiled model, the coupled joint pairs a single actuator
 drives together with nothing else holding their difference; :func:`settled` moves a joint vector

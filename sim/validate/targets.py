@@ -380,10 +380,10 @@ def targets_from_contacts(scene: Scene, hand: Hand, q: np.ndarray, near: Contact
                                gaps + common.squeeze_depth_m)
     squeeze = hand.clip(q + onto + boost * deflection)
     modes = free_modes(scene, hand, arm) if settle_modes else []
+    push = -(jac.T @ forces)   # the contacts' reaction on the fingers drives the free modes
 
     def settle(p: np.ndarray) -> np.ndarray:
-        return settled(p, modes, -(jac.T @ forces), hand.lower, hand.upper)
+        return settled(p, modes, push, hand.lower, hand.upper) if modes else p
 
     pre = clear_of_itself(scene, q, pre, settle) if self_clear else settle(pre)
     return GraspTargets(pre, squeeze, len(rows), boost * force_n, hand.clip(q + pinv @ gaps))
-
