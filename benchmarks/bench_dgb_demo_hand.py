@@ -17,7 +17,8 @@ and leaves their split free. Three measurements:
     as the demonstrations' hand evidently held it: an experiment, not the benchmark's model).
 ``imbalance DATASET.h5 ...``
     The benchmark's closing (pregrasp → grasp → squeeze, its ramp) with the object held still:
-    the hand's net force (N) and torque over 2 cm (N) on the object, averaged over the closing.
+    the hand's net force (N) and torque over 2 cm (N) on the object, averaged over the closing
+    (:func:`sim.validate.diagnose_dgb.held_closing`).
     A squeeze whose forces do not balance on a held object shoves the free one. Reports how
     well that predicts the stored ``dgb`` verdict (AUC; pass rate of the better half).
 
@@ -39,13 +40,11 @@ import numpy as np
 from augment import dataset
 from sim.grasp import Grasp
 from sim.hand.model import Hand
+from sim.validate.diagnose_dgb import hand_wrench, held_closing, held_steps
 from sim.validate.validator import Validator
 from sim.world import scene as scene_module
 from sim.world.objects import load_object
 from sim.world.scene import HAND_PREFIX, Scene
-
-#: lever (metres) that turns the net torque into newtons for the imbalance score
-LEVER_M = 0.02
 
 _validator: Validator | None = None
 
@@ -68,42 +67,6 @@ def tied(compose: Callable[[Scene], mujoco.MjSpec]) -> Callable[[Scene], mujoco.
         return spec
 
     return composed
-
-
-def held_steps(scene: Scene, nstep: int) -> None:
-    """``nstep`` simulation steps with the object held exactly where it is (pose reset and
-    velocity zeroed after each step), so the hand's forces on it can be read, not its motion."""
-    m, d = scene.model, scene.data
-    qadr = m.jnt_qposadr[m.body_jntadr[scene.obj_body]]
-    pose = d.qpos[qadr:qadr + 7].copy()
-    for _ in range(nstep):
-        mujoco.mj_step(m, d)
-        d.qpos[qadr:qadr + 7] = pose
-        d.qvel[scene.obj_dadr:scene.obj_dadr + 6] = 0.0
-
-
-def hand_wrench(scene: Scene) -> tuple[np.ndarray, np.ndarray, set[int]]:
-    """Net force (N) and torque about the centre of mass (N·m) of the hand's contacts on the
-    object, and the hand bodies pressing it."""
-    m, d = scene.model, scene.data
-    centre = d.xipos[scene.obj_body]
-    force, torque, bodies = np.zeros(3), np.zeros(3), set()
-    f6 = np.zeros(6)
-    for i in range(d.ncon):
-        con = d.contact[i]
-        b1, b2 = int(m.geom_bodyid[con.geom1]), int(m.geom_bodyid[con.geom2])
-        if scene.obj_body not in (b1, b2) or not (scene.hand_geom_mask[con.geom1]
-                                                  or scene.hand_geom_mask[con.geom2]):
-            continue
-        mujoco.mj_contactForce(m, d, i, f6)
-        frame = con.frame.reshape(3, 3)
-        sign = 1.0 if b2 == scene.obj_body else -1.0     # the contact force acts on geom2
-        f = sign * frame.T @ f6[:3]
-        force += f
-        torque += sign * frame.T @ f6[3:] + np.cross(con.pos - centre, f)
-        if f6[0] > 0.0:
-            bodies.add(b1 if b2 == scene.obj_body else b2)
-    return force, torque, bodies
 
 
 def press(demo_path: Path, press_rad: float) -> None:
@@ -147,18 +110,10 @@ def _imbalance(job: tuple[np.ndarray, np.ndarray]) -> float:
     v = _validator
     grasp = Grasp(pose[:3], pose[3:], q)
     stages = v.stages(grasp, "dexaug", sized_for="dgb")
-    scene, p = v.scene("dgb"), v.config.dgb
-    scene.reset_with_grasp(*v.palm_world(grasp), stages.pregrasp)
-    scores = []
-    for start, end in ((stages.pregrasp, stages.grasp), (stages.grasp, stages.squeeze)):
-        c0, c1 = scene.ctrl_for(start), scene.ctrl_for(end)
-        for k in range(1, p.stage_increments + 1):
-            scene.data.ctrl[scene.hand_act] = c0 + (c1 - c0) * k / p.stage_increments
-            held_steps(scene, p.steps_per_increment)
-            mujoco.mj_forward(scene.model, scene.data)
-            force, torque, _ = hand_wrench(scene)
-            scores.append(np.linalg.norm(force) + np.linalg.norm(torque) / LEVER_M)
-    return float(np.mean(scores))
+    p = v.config.dgb
+    held = held_closing(v.scene("dgb"), (p.stage_increments, p.steps_per_increment),
+                        v.palm_world(grasp), stages)
+    return float(held.imbalance_n.mean())
 
 
 def jobs_of(path: Path, n: int) -> Iterator[tuple[str, str, np.ndarray, list]]:

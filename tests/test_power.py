@@ -62,7 +62,7 @@ def test_power_grasps_touch_where_they_say_and_hold_a_heavy_bottle(shadow, bleac
         assert len(g.contact_points) == len(g.contact_normals) == len(g.contact_finger)
         # placed in the validator's scene, every finger it names touches the bottle there
         val._place(scene, g.grasp, g.grasp.joints)
-        near = val._near_contacts(scene)
+        near = val.near_contacts(scene)
         touching = {scene.model.body(int(b)).name for b in near.body_a[near.dist <= 0.003]}
         for name in g.fingers:
             links = {HAND_PREFIX + x for x in (*shadow.config.finger(name).links,

@@ -45,7 +45,7 @@ def _gaps_m(v: Validator, q: np.ndarray) -> dict[int, float]:
     """Per hand body within the benchmark's contact set at joints ``q``: its gap (metres)."""
     scene = v.scene("lift-drop")
     v._place(scene, SCREWDRIVER_GRASP, q)
-    near = v._near_contacts(scene, v.config.dgb.contact_search_m)
+    near = v.near_contacts(scene, v.config.dgb.contact_search_m)
     return {int(b): float(near.dist[near.body_a == b].min()) for b in np.unique(near.body_a)}
 
 

@@ -1,7 +1,8 @@
-"""Subcommand ``diagnose``: why a dataset's grasps failed, from a replay of each under lift-drop.
+"""Subcommand ``diagnose``: why a dataset's grasps failed, from a replay of each under lift-drop
+or the benchmark (``dgb``).
 
 :func:`diagnose_dataset` is the job (also callable without the CLI parser); the physics is
-:mod:`sim.validate.diagnose`.
+:mod:`sim.validate.diagnose` (lift-drop) and :mod:`sim.validate.diagnose_dgb` (``dgb``).
 """
 
 from __future__ import annotations
@@ -31,6 +32,10 @@ def _diagnose_args(p: argparse.ArgumentParser) -> None:
                         "default %(default)s")
     p.add_argument("--passing", type=int_at_least(0), default=5,
                    help="passing grasps replayed too, for comparison; default %(default)s")
+    p.add_argument("--protocol", choices=("lift-drop", "dgb"), default="lift-drop",
+                   help="replay under lift-drop (slip, friction, efforts) or the benchmark (closing "
+                        "drift, the held closing's imbalance, reconfigured J1/J2 pairs, unloaded "
+                        "contacts); default %(default)s")
     p.add_argument("--json", type=Path, help="write every grasp's findings and the summary as JSON")
 
 
@@ -44,42 +49,69 @@ def _grasps(table: Any, n: int) -> list[Any]:
     return out
 
 
+def _num(x: float, fmt: str = ".2f") -> str:
+    """``x`` formatted, or a dash for NaN (no grasp in the group)."""
+    return "—" if x != x else format(x, fmt)
+
+
+def _findings_table(title: str) -> Table:
+    t = Table(title=title, show_header=True)
+    for column in ("finding", "failing", "passing"):
+        t.add_column(column)
+    return t
+
+
 def _summary_table(name: str, summary: dict[str, Any]) -> Table:
-    t = Table(title=f"{name}: {summary['grasps']} grasps replayed", show_header=True)
-    t.add_column("finding")
-    t.add_column("failing")
-    t.add_column("passing")
+    t = _findings_table(f"{name}: {summary['grasps']} grasps replayed")
     f, p = summary["failing"], summary["passing"]
-
-    def num(x: float, fmt: str = ".2f") -> str:
-        return "—" if x != x else format(x, fmt)
-
     t.add_row("verdicts", Text(json.dumps(summary["verdicts"])), "")
     t.add_row("slip mode (palm frame)", Text(json.dumps(summary["slip_modes"])), "")
     t.add_row("slip starts in", Text(json.dumps(summary["slip_onset_phase"])), "")
-    t.add_row("friction use ft/(μ·fn), median", num(f["friction_use_median"]),
-              num(p["friction_use_median"]))
-    t.add_row("largest servo effort / limit, median", num(f["effort_max_median"]),
-              num(p["effort_max_median"]))
+    t.add_row("friction use ft/(μ·fn), median", _num(f["friction_use_median"]),
+              _num(p["friction_use_median"]))
+    t.add_row("largest servo effort / limit, median", _num(f["effort_max_median"]),
+              _num(p["effort_max_median"]))
     t.add_row("grasps with a servo at its limit", str(f["with_actuator_at_limit"]), "")
     t.add_row("grasps with a sliding contact", str(f["with_sliding_contact"]), "")
-    t.add_row("total normal force (N), median", num(f["fn_total_median_n"], ".1f"),
-              num(p["fn_total_median_n"], ".1f"))
-    t.add_row("contact centroid → COM lever (mm), median", num(1e3 * f["lever_arm_median_m"], ".1f"),
-              num(1e3 * p["lever_arm_median_m"], ".1f"))
+    t.add_row("total normal force (N), median", _num(f["fn_total_median_n"], ".1f"),
+              _num(p["fn_total_median_n"], ".1f"))
+    t.add_row("contact centroid → COM lever (mm), median", _num(1e3 * f["lever_arm_median_m"], ".1f"),
+              _num(1e3 * p["lever_arm_median_m"], ".1f"))
     t.add_row("weight carried per finger, median", Text(json.dumps(f["support_median"])),
               Text(json.dumps(p["support_median"])))
     return t
 
 
+def _dgb_summary_table(name: str, summary: dict[str, Any]) -> Table:
+    t = _findings_table(f"{name}: {summary['grasps']} grasps replayed under dgb")
+    f, p = summary["failing"], summary["passing"]
+    t.add_row("grasps", str(f["grasps"]), str(p["grasps"]))
+    t.add_row("verdicts", Text(json.dumps(summary["verdicts"])), "")
+    t.add_row("first failing push", Text(json.dumps(summary["failing_push"])), "")
+    t.add_row("turn after the grasp stage (°), median", _num(f["grasp_drift_deg_median"], ".1f"),
+              _num(p["grasp_drift_deg_median"], ".1f"))
+    t.add_row("drift after the squeeze (mm, °), median",
+              f"{_num(f['squeeze_drift_mm_median'], '.1f')}, {_num(f['squeeze_drift_deg_median'], '.1f')}",
+              f"{_num(p['squeeze_drift_mm_median'], '.1f')}, {_num(p['squeeze_drift_deg_median'], '.1f')}")
+    t.add_row("held closing: imbalance ‖F‖ + ‖τ‖/2 cm (N), median",
+              _num(f["held_imbalance_median_n"], ".2f"), _num(p["held_imbalance_median_n"], ".2f"))
+    t.add_row("J1/J2 pairs reconfigured (> 0.1 rad), median",
+              _num(f["pairs_reconfigured_median"], ".1f"), _num(p["pairs_reconfigured_median"], ".1f"))
+    t.add_row("planned contacts unloaded at the end, median",
+              _num(f["planned_unloaded_median"], ".1f"), _num(p["planned_unloaded_median"], ".1f"))
+    return t
+
+
 def diagnose_dataset(path: Path, console: Console, *, object_name: str | None = None,
-                     n: int = 20, passing: int = 5, json_path: Path | None = None) -> int:
+                     n: int = 20, passing: int = 5, json_path: Path | None = None,
+                     protocol: str = "lift-drop") -> int:
     """Replay up to ``n`` failing and ``passing`` passing grasps per object of the dataset at
-    ``path`` and print the findings; returns the exit code."""
+    ``path`` under ``protocol`` and print the findings; returns the exit code."""
     from augment import dataset
     from sim.hand.model import Hand
     from sim.io import write_bytes_atomic
     from sim.validate.diagnose import diagnose, summarise
+    from sim.validate.diagnose_dgb import diagnose_dgb, summarise_dgb
     from sim.validate.validator import Validator
     from sim.world.objects import load_object
 
@@ -103,10 +135,15 @@ def diagnose_dataset(path: Path, console: Console, *, object_name: str | None = 
         with Progress(console=console, transient=True) as bar:
             task = bar.add_task(f"replaying {name}", total=len(jobs))
             for _, grasp in jobs:
-                diagnoses.append(diagnose(validator, grasp))
+                diagnoses.append(diagnose_dgb(validator, grasp) if protocol == "dgb"
+                                 else diagnose(validator, grasp))
                 bar.advance(task)
-        summary = summarise(diagnoses)
-        console.print(_summary_table(name, summary))
+        if protocol == "dgb":
+            summary = summarise_dgb(diagnoses)
+            console.print(_dgb_summary_table(name, summary))
+        else:
+            summary = summarise(diagnoses)
+            console.print(_summary_table(name, summary))
         report[name] = {"summary": summary,
                         "grasps": [{"set": s, **d.findings} for (s, _), d in zip(jobs, diagnoses,
                                                                                   strict=True)]}
@@ -118,13 +155,16 @@ def diagnose_dataset(path: Path, console: Console, *, object_name: str | None = 
 
 @command("diagnose", _diagnose_args)
 def diagnose(args: argparse.Namespace, console: Console) -> int:
-    """Why grasps slip: replay a dataset's failing (and some passing) grasps under lift-drop.
+    """Why grasps fail: replay a dataset's failing (and some passing) grasps under lift-drop or dgb.
 
-    Per grasp and summarised per object: when the object starts to slip and which way
-    (translation or rotation, palm-frame axis: +y out of the palm), each contact's friction use
-    ft/(μ·fn), each servo's effort against its force limit, the total normal force, which fingers
-    carry the object's weight, and the lever arm from the contacts to the centre of mass. The
-    replay is the validator's own run, so the verdicts are the dataset's.
+    Lift-drop, per grasp and summarised per object: when the object starts to slip and which
+    way (translation or rotation, palm-frame axis: +y out of the palm), each contact's friction
+    use ft/(μ·fn), each servo's effort against its force limit, the total normal force, which
+    fingers carry the object's weight, and the lever arm from the contacts to the centre of mass.
+    dgb (--protocol dgb): the free object's drift after the closing's grasp and squeeze stages,
+    the first failing push, and the same closing on the held object: the hand's net force and
+    torque on it, which tendon-shared J1/J2 pairs reconfigure, which planned contacts end up
+    unloaded. The replay is the validator's own run, so the verdicts are the dataset's.
     """
     return diagnose_dataset(args.dataset, console, object_name=args.object, n=args.n,
-                            passing=args.passing, json_path=args.json)
+                            passing=args.passing, json_path=args.json, protocol=args.protocol)

@@ -122,7 +122,7 @@ class Validator:
         return contacts_between(scene.model, scene.data, scene.hand_geom_mask, scene.obj_geom_mask,
                                 with_force=with_force)
 
-    def _near_contacts(self, scene: Scene, search_m: float | None = None) -> Contacts:
+    def near_contacts(self, scene: Scene, search_m: float | None = None) -> Contacts:
         """Hand–object contacts and near misses within ``search_m`` (default ``[common]
         contact_search_m``): object geoms get that margin for one collision pass, then no more."""
         m, d = scene.model, scene.data
@@ -153,9 +153,9 @@ class Validator:
         else:   # hold_loads refuses an unknown protocol
             loads = loads_in_world(hold_loads(self.obj, sized_for, self.config), scene)
         dgb = self.scene("dgb") if sized_for == "dgb" else None
-        near = self._near_contacts(scene, None if dgb is None else self.config.dgb.contact_search_m)
+        near = self.near_contacts(scene, None if dgb is None else self.config.dgb.contact_search_m)
         if dgb is not None and not holds_every_load(near, loads):
-            near = self._near_contacts(scene)
+            near = self.near_contacts(scene)
         servos = {} if dgb is None else {
             "act_stiffness": servo_stiffness_from(dgb, scene), "act_limits": servo_limits_from(dgb, scene),
             "settle_modes": own_pregrasp and self.config.dgb.settle_free_modes, "self_clear": own_pregrasp}
@@ -228,7 +228,7 @@ class Validator:
         squeezes. One collision pass and a linear programme, no simulation."""
         scene = self.scene(protocol)
         self._place(scene, grasp, self.hand.check_q(grasp.joints, "grasp joints"))
-        return actuator_effort(scene, self._near_contacts(scene), self._finger_mask, hold)
+        return actuator_effort(scene, self.near_contacts(scene), self._finger_mask, hold)
 
     def penetration_m(self, grasp: Grasp, protocol: str = "lift-drop") -> float:
         """Deepest hand–object penetration (metres, 0 when none) of the grasp placed as
@@ -370,7 +370,7 @@ class Validator:
         scene = self.scene("lift-drop")
         self._place(scene, grasp, q)
         m, d = scene.model, scene.data
-        near = self._near_contacts(scene)
+        near = self.near_contacts(scene)
         points = near.points_a
         out: dict[str, np.ndarray | None] = {}
         for finger in self.hand.config.fingers:

@@ -1,0 +1,205 @@
+"""Why grasps fail the benchmark (``dgb``): where the drift comes from, and what the hand does.
+
+Most ``dgb`` failures happen in the closing, before the first push (README "Grasps that hold"),
+and the benchmark's verdict alone does not say why. :func:`diagnose_dgb` replays one grasp with
+the validator's own stages (so the same verdict) and adds:
+
+- the free object's drift after the grasp stage and after the squeeze stage
+  (:func:`sim.validate.dgb.closing_drift`), and the first push direction that failed;
+- the **held closing**: the same closing with the object held exactly still. The hand's net
+  force and torque on it (:func:`hand_wrench`) say how far the squeeze is from balancing on its
+  own; a free object moves until they balance. ``imbalance_n`` is ‖F‖ + ‖τ‖ / 2 cm, averaged
+  over the closing's control steps (predicts the verdict on four of five demos,
+  ``benchmarks/bench_dgb_demo_hand.py``);
+- per tendon-shared joint pair (:mod:`sim.validate.free_modes`: one servo, the split free), how
+  far the split J1 − J2 moved in the held closing: a pressed finger that reconfigures rolls its
+  fingertip over the object;
+- the planned contacts (hand bodies within ``[dgb] contact_search_m`` at the grasp stage) that
+  carry no force at the end of the held closing.
+
+Units: metres, newtons, N·m, radians (degrees only in the summary's printed drift).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from sim.grasp import Grasp
+from sim.validate.dgb import closing_drift
+from sim.validate.effort import closest_per_body
+from sim.validate.stages import GraspStages
+from sim.validate.validator import Validator
+from sim.world.scene import HAND_PREFIX, Scene
+
+__all__ = ["IMBALANCE_LEVER_M", "DgbDiagnosis", "diagnose_dgb", "hand_wrench", "held_closing",
+           "held_steps", "summarise_dgb"]
+
+#: lever (metres) that turns the held net torque into newtons for ``imbalance_n``
+IMBALANCE_LEVER_M = 0.02
+#: a pair's split moving more than this (radians) in the held closing counts as reconfigured
+RECONFIGURED_RAD = 0.1
+
+
+def held_steps(scene: Scene, nstep: int) -> None:
+    """``nstep`` simulation steps with the object held exactly where it is (its pose restored
+    and its velocity zeroed after every step): the hand's forces on it can be read, not its
+    motion."""
+    m, d = scene.model, scene.data
+    qadr = m.jnt_qposadr[m.body_jntadr[scene.obj_body]]
+    pose = d.qpos[qadr:qadr + 7].copy()
+    for _ in range(nstep):
+        mujoco.mj_step(m, d)
+        d.qpos[qadr:qadr + 7] = pose
+        d.qvel[scene.obj_dadr:scene.obj_dadr + 6] = 0.0
+
+
+def hand_wrench(scene: Scene) -> tuple[np.ndarray, np.ndarray, set[int]]:
+    """The hand's contacts on the object: net force (N, world), net torque about the object's
+    centre of mass (N·m, world; contact torsion included) and the ids of the hand bodies
+    pressing it."""
+    m, d = scene.model, scene.data
+    centre = d.xipos[scene.obj_body]
+    force, torque, bodies = np.zeros(3), np.zeros(3), set()
+    f6 = np.zeros(6)
+    for i in range(d.ncon):
+        con = d.contact[i]
+        g1, g2 = int(con.geom1), int(con.geom2)
+        b1, b2 = int(m.geom_bodyid[g1]), int(m.geom_bodyid[g2])
+        if scene.obj_body not in (b1, b2) or not (scene.hand_geom_mask[g1] or scene.hand_geom_mask[g2]):
+            continue
+        mujoco.mj_contactForce(m, d, i, f6)
+        frame = con.frame.reshape(3, 3)
+        sign = 1.0 if b2 == scene.obj_body else -1.0      # the contact frame's force acts on geom2
+        f = sign * frame.T @ f6[:3]
+        force += f
+        torque += sign * frame.T @ f6[3:] + np.cross(con.pos - centre, f)
+        if f6[0] > 0.0:
+            bodies.add(b1 if b2 == scene.obj_body else b2)
+    return force, torque, bodies
+
+
+@dataclass(frozen=True)
+class HeldClosing:
+    """The benchmark's closing run on the held object: ``imbalance_n`` per control step (N),
+    the net force and torque at its end, the hand bodies pressing at its end, and the split
+    J1 − J2 of each tendon-shared pair (by the pair's joint names) at its start and end."""
+
+    imbalance_n: np.ndarray
+    force_n: np.ndarray
+    torque_nm: np.ndarray
+    pressing: set[str]
+    split_rad: dict[str, tuple[float, float]]
+
+
+def _splits(scene: Scene) -> dict[str, float]:
+    m, d, hand = scene.model, scene.data, scene.hand
+    out = {}
+    for follower, leader, _ in hand.couplings:
+        a, b = (hand.joint_names[k] for k in (follower, leader))
+        ja, jb = m.joint(HAND_PREFIX + a), m.joint(HAND_PREFIX + b)
+        out[f"{b}/{a}"] = float(d.qpos[ja.qposadr[0]] - d.qpos[jb.qposadr[0]])
+    return out
+
+
+def held_closing(scene: Scene, steps: tuple[int, int], palm_world: tuple[np.ndarray, np.ndarray],
+                 stages: GraspStages) -> HeldClosing:
+    """Close pregrasp → grasp → squeeze as the benchmark does (``steps``: its increments per
+    stage and simulation steps per increment) with the object held still."""
+    increments, per_increment = steps
+    m, d = scene.model, scene.data
+    scene.reset_with_grasp(*palm_world, stages.pregrasp)
+    mujoco.mj_forward(m, d)
+    start = _splits(scene)
+    imbalance = []
+    for q_from, q_to in ((stages.pregrasp, stages.grasp), (stages.grasp, stages.squeeze)):
+        c_from, c_to = scene.ctrl_for(q_from), scene.ctrl_for(q_to)
+        for k in range(1, increments + 1):
+            d.ctrl[scene.hand_act] = c_from + (c_to - c_from) * k / increments
+            held_steps(scene, per_increment)
+            mujoco.mj_forward(m, d)
+            force, torque, _ = hand_wrench(scene)
+            imbalance.append(np.linalg.norm(force) + np.linalg.norm(torque) / IMBALANCE_LEVER_M)
+    force, torque, bodies = hand_wrench(scene)
+    end = _splits(scene)
+    return HeldClosing(np.array(imbalance), force, torque,
+                       {m.body(b).name.removeprefix(HAND_PREFIX) for b in bodies},
+                       {k: (start[k], end[k]) for k in start})
+
+
+@dataclass
+class DgbDiagnosis:
+    """One grasp's ``dgb`` replay: the verdict, and the findings (plain data, JSON-ready)."""
+
+    passed: bool
+    findings: dict[str, Any] = field(default_factory=dict)
+
+
+def _planned_bodies(v: Validator, grasp: Grasp, stages: GraspStages) -> set[str]:
+    """Hand bodies within ``[dgb] contact_search_m`` of the object at the grasp stage."""
+    scene = v.scene("lift-drop")
+    scene.reset_with_grasp(*v.palm_world(grasp), stages.grasp)
+    near = v.near_contacts(scene, v.config.dgb.contact_search_m)
+    return {scene.model.body(int(near.body_a[i])).name.removeprefix(HAND_PREFIX)
+            for i in closest_per_body(near)}
+
+
+def diagnose_dgb(v: Validator, grasp: Grasp) -> DgbDiagnosis:
+    """Replay ``grasp`` under ``dgb`` with ``v``'s stages and settings (module docstring)."""
+    result = v.validate(grasp, "dgb")
+    stages = v.stages(grasp, sized_for="dgb")
+    p, scene = v.config.dgb, v.scene("dgb")
+    drift = closing_drift(scene, p, v.palm_world(grasp), stages)
+    held = held_closing(scene, (p.stage_increments, p.steps_per_increment), v.palm_world(grasp),
+                        stages)
+    planned = _planned_bodies(v, grasp, stages)
+    failed = [k for k, ph in result.phases.items() if not ph.passed]
+    moved = {k: end - start for k, (start, end) in held.split_rad.items()}
+    return DgbDiagnosis(result.passed, {
+        "verdict": "passed" if result.passed else str(result.failure),
+        "failing_push": failed[0] if failed else None,
+        "drift_after_grasp_m_rad": list(drift["grasp"]),
+        "drift_after_squeeze_m_rad": list(drift["squeeze"]),
+        "held_imbalance_mean_n": float(held.imbalance_n.mean()),
+        "held_force_end_n": float(np.linalg.norm(held.force_n)),
+        "held_torque_end_nm": float(np.linalg.norm(held.torque_nm)),
+        "split_moved_rad": moved,
+        "pairs_reconfigured": sorted(k for k, x in moved.items() if abs(x) > RECONFIGURED_RAD),
+        "planned_contacts": sorted(planned),
+        "planned_contacts_unloaded": sorted(planned - held.pressing),
+    })
+
+
+def _median(values: list[float]) -> float:
+    return float(np.median(values)) if values else float("nan")
+
+
+def summarise_dgb(diagnoses: list[DgbDiagnosis]) -> dict[str, Any]:
+    """Per verdict group ("failing", "passing"): medians of the drift after each closing stage
+    (mm, degrees), the held imbalance (N), the reconfigured pairs and the unloaded planned
+    contacts per grasp; and, over the failing grasps, the verdicts and failing push
+    directions."""
+    out: dict[str, Any] = {"grasps": len(diagnoses)}
+    for label, group in (("failing", [g for g in diagnoses if not g.passed]),
+                         ("passing", [g for g in diagnoses if g.passed])):
+        f = [g.findings for g in group]
+        out[label] = {
+            "grasps": len(group),
+            "squeeze_drift_mm_median": _median([1e3 * x["drift_after_squeeze_m_rad"][0] for x in f]),
+            "squeeze_drift_deg_median": _median([float(np.degrees(x["drift_after_squeeze_m_rad"][1]))
+                                                 for x in f]),
+            "grasp_drift_deg_median": _median([float(np.degrees(x["drift_after_grasp_m_rad"][1]))
+                                               for x in f]),
+            "held_imbalance_median_n": _median([x["held_imbalance_mean_n"] for x in f]),
+            "pairs_reconfigured_median": _median([len(x["pairs_reconfigured"]) for x in f]),
+            "planned_unloaded_median": _median([len(x["planned_contacts_unloaded"]) for x in f]),
+        }
+    failing = [g.findings for g in diagnoses if not g.passed]
+    out["verdicts"] = {k: sum(x["verdict"] == k for x in failing)
+                       for k in sorted({x["verdict"] for x in failing})}
+    pushes = [x["failing_push"] or "refused before any push" for x in failing]
+    out["failing_push"] = {k: pushes.count(k) for k in sorted(set(pushes))}
+    return out
