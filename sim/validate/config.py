@@ -81,7 +81,8 @@ class DgbParams:
     """DexGraspBench's fc evaluation (``[dgb]``): its own contacts, servos, object mass (None:
     the object's real mass), solver, penetration filter, closing stages and pushes, and
     whether the ``dexaug`` convention's pregrasp starts the fingers' free modes where pressing
-    leaves them (:mod:`sim.validate.free_modes`)."""
+    leaves them (:mod:`sim.validate.free_modes`), and whether its targets are chosen by
+    rehearsing the closing (:mod:`sim.validate.rehearsal`)."""
 
     object_mass_kg: float | None
     contact: ContactParams
@@ -102,6 +103,9 @@ class DgbParams:
     max_rotation_rad: float
     squeeze_convention: str
     settle_free_modes: bool
+    rehearse_closing: bool
+    rehearsal_pregrasp_shares: tuple[float, ...]
+    rehearsal_fallback_squeeze_scales: tuple[float, ...]
 
 
 def _contact(sec: Section) -> ContactParams:
@@ -122,7 +126,16 @@ def _load_dgb(sec: Section) -> DgbParams:
                         "contact_search_m", "stage_increments", "steps_per_increment",
                         "force_per_kg", "push_time_s", "check_every_steps",
                         "max_displacement_m", "max_rotation_deg", "squeeze_convention",
-                        "settle_free_modes"})
+                        "settle_free_modes", "rehearse_closing", "rehearsal_pregrasp_shares",
+                        "rehearsal_fallback_squeeze_scales"})
+    shares = tuple(sec.floats("rehearsal_pregrasp_shares"))
+    if not shares or any(not 0.0 <= s <= 1.0 for s in shares):
+        raise sec.error("rehearsal_pregrasp_shares",
+                        f"expected one or more shares of the back-off in [0, 1], got {list(shares)}")
+    key = "rehearsal_fallback_squeeze_scales"
+    scales = tuple(sec.floats(key))
+    if any(not 0.0 < s <= 1.0 for s in scales):
+        raise sec.error(key, f"expected gentler squeezes, scales in (0, 1], got {list(scales)}")
     mass = sec.data.get("object_mass_kg")
     if mass == "real":
         mass_kg = None
@@ -147,7 +160,9 @@ def _load_dgb(sec: Section) -> DgbParams:
         check_every_steps=sec.int("check_every_steps", min=1),
         max_displacement_m=sec.float("max_displacement_m", min=0.0),
         max_rotation_rad=np.deg2rad(sec.float("max_rotation_deg", min=0.0, max=180.0)),
-        squeeze_convention=convention, settle_free_modes=sec.bool("settle_free_modes"))
+        squeeze_convention=convention, settle_free_modes=sec.bool("settle_free_modes"),
+        rehearse_closing=sec.bool("rehearse_closing"), rehearsal_pregrasp_shares=shares,
+        rehearsal_fallback_squeeze_scales=scales)
 
 
 def _choice(sec: Section, key: str, allowed: tuple[str, ...]) -> str:

@@ -33,7 +33,7 @@ from sim.validate.stages import GraspStages
 from sim.world.contacts import contacts_between
 from sim.world.scene import Scene
 
-__all__ = ["DGB_DIRECTIONS", "closing_drift", "dgb_drift", "dgb_penetration_m", "run_dgb"]
+__all__ = ["DGB_DIRECTIONS", "close", "closing_drift", "dgb_drift", "dgb_penetration_m", "run_dgb"]
 
 DGB_DIRECTIONS = {"-x": (-1, 0, 0), "+x": (1, 0, 0), "-y": (0, -1, 0), "+y": (0, 1, 0),
                   "-z": (0, 0, -1), "+z": (0, 0, 1)}
@@ -63,6 +63,12 @@ def _stage(scene: Scene, p: DgbParams, q_from: np.ndarray, q_to: np.ndarray) -> 
         d.ctrl[scene.hand_act] = (1.0 - alpha) * c_from + alpha * c_to
         mujoco.mj_forward(m, d)
         mujoco.mj_step(m, d, nstep=p.steps_per_increment)
+
+
+def close(scene: Scene, p: DgbParams, stages: GraspStages) -> None:
+    """The benchmark's closing from the current state: pregrasp → grasp, then grasp → squeeze."""
+    _stage(scene, p, stages.pregrasp, stages.grasp)
+    _stage(scene, p, stages.grasp, stages.squeeze)
 
 
 def closing_drift(scene: Scene, p: DgbParams, palm_world: tuple[np.ndarray, np.ndarray],
@@ -104,8 +110,7 @@ def run_dgb(scene: Scene, p: DgbParams, palm_world: tuple[np.ndarray, np.ndarray
     ok, disp, rot = True, 0.0, 0.0
     for i, (name, direction) in enumerate(DGB_DIRECTIONS.items()):
         scene.reset_with_grasp(*palm_world, stages.pregrasp)
-        _stage(scene, p, stages.pregrasp, stages.grasp)
-        _stage(scene, p, stages.grasp, stages.squeeze)
+        close(scene, p, stages)
         if i == 0 and after_first_close is not None:
             after_first_close()
         d.xfrc_applied[scene.obj_body, :3] = force * np.asarray(direction, float)

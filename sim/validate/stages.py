@@ -40,12 +40,15 @@ class GraspStages:
     """Pregrasp, grasp and squeeze joint vectors (full hand vectors, radians) and how they were
     made: a convention name, or ``"given"`` when the grasp carried both (a ``bodex`` squeeze is
     always made from the pregrasp, given or not). ``grasp`` is the grasp's own joints, except
-    in a ``dexaug`` closing through the touching grasp (module docstring)."""
+    in a ``dexaug`` closing through the touching grasp (module docstring).
+    ``pregrasp_own_split``: a made ``dexaug`` pregrasp's alternative with the fingers' free
+    modes at the grasp's split (:class:`sim.validate.targets.GraspTargets`; None: none)."""
 
     pregrasp: np.ndarray
     grasp: np.ndarray
     squeeze: np.ndarray
     made_by: str
+    pregrasp_own_split: np.ndarray | None = None
 
 
 def grasp_stages(grasp: Grasp, convention: str, derive: Callable[[np.ndarray], GraspTargets],
@@ -72,4 +75,5 @@ def grasp_stages(grasp: Grasp, convention: str, derive: Callable[[np.ndarray], G
     if targets is None:
         return GraspStages(pregrasp, q, grasp.squeeze, "given")
     squeeze = grasp.squeeze if grasp.squeeze is not None else targets.squeeze
-    return GraspStages(pregrasp, touch, squeeze, convention)
+    own_split = targets.pregrasp_own_split if grasp.pregrasp is None else None
+    return GraspStages(pregrasp, touch, squeeze, convention, own_split)

@@ -47,6 +47,7 @@ stiffness times a millimetre-scale placement error, which is most of a light obj
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import mujoco
@@ -81,13 +82,16 @@ class GraspTargets:
     many hand bodies were near the object, the normal force (newtons) the squeeze target asks
     of each of them, and ``touch``: the grasp with each of those bodies moved onto the surface,
     no deeper (None: no body near) — the middle stage of the ``dgb`` protocol's closing
-    (:mod:`sim.validate.stages`)."""
+    (:mod:`sim.validate.stages`). ``pregrasp_own_split``: where the fingers' free modes were
+    settled, the pregrasp with them left at the grasp's own split (None: nothing settled) —
+    the alternative the ``dgb`` rehearsal tries (:mod:`sim.validate.rehearsal`)."""
 
     pregrasp: np.ndarray
     squeeze: np.ndarray
     n_bodies_near: int
     grip_force_n: float = 0.0
     touch: np.ndarray | None = None
+    pregrasp_own_split: np.ndarray | None = None
 
 
 def finger_joint_mask(hand: Hand) -> np.ndarray:
@@ -385,5 +389,9 @@ def targets_from_contacts(scene: Scene, hand: Hand, q: np.ndarray, near: Contact
     def settle(p: np.ndarray) -> np.ndarray:
         return settled(p, modes, push, hand.lower, hand.upper) if modes else p
 
-    pre = clear_of_itself(scene, q, pre, settle) if self_clear else settle(pre)
-    return GraspTargets(pre, squeeze, len(rows), boost * force_n, hand.clip(q + pinv @ gaps))
+    def kept_clear(settle: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
+        return clear_of_itself(scene, q, pre, settle) if self_clear else settle(pre)
+
+    own_split = kept_clear(lambda p: p) if modes else None
+    return GraspTargets(kept_clear(settle), squeeze, len(rows), boost * force_n,
+                        hand.clip(q + pinv @ gaps), own_split)

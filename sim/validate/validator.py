@@ -36,6 +36,7 @@ from sim.validate.effort import actuator_effort
 from sim.validate.lift_drop import Observer, lift_drop, unit_down
 from sim.validate.loads import hold_loads
 from sim.validate.program import Advance, Program, run_here
+from sim.validate.rehearsal import pregrasp_candidates, rehearsed_stages
 from sim.validate.result import Failure, ValidationResult
 from sim.validate.six_dir import six_dir
 from sim.validate.stages import GraspStages, grasp_stages
@@ -158,7 +159,8 @@ class Validator:
             near = self.near_contacts(scene)
         servos = {} if dgb is None else {
             "act_stiffness": servo_stiffness_from(dgb, scene), "act_limits": servo_limits_from(dgb, scene),
-            "settle_modes": own_pregrasp and self.config.dgb.settle_free_modes, "self_clear": own_pregrasp}
+            "settle_modes": own_pregrasp and self.config.dgb.settle_free_modes,
+            "self_clear": own_pregrasp}
         return targets_from_contacts(scene, self.hand, q, near, self.config.common, self._finger_mask,
                                      loads, **servos)
 
@@ -167,7 +169,10 @@ class Validator:
         """Pregrasp, grasp and squeeze of ``grasp``: its own when it carries them, else made by
         ``convention`` (default: ``[dgb] squeeze_convention``; :mod:`sim.validate.stages`),
         whose ``dexaug`` targets come from the lift-drop scene's contacts with the grip sized
-        for protocol ``sized_for`` (:meth:`derive_targets`; an arm's lift: ``lift-drop``)."""
+        for protocol ``sized_for`` (:meth:`derive_targets`; an arm's lift: ``lift-drop``). For
+        the benchmark (``sized_for="dgb"``) the ``dexaug`` convention's made targets are
+        chosen by rehearsing the benchmark's closing (:mod:`sim.validate.rehearsal`; ``[dgb]
+        rehearse_closing``)."""
         self.hand.check_q(grasp.joints, "grasp joints")
         convention = convention or self.config.dgb.squeeze_convention
 
@@ -176,7 +181,13 @@ class Validator:
             self._place(scene, grasp, q)
             return self.derive_targets(scene, q, sized_for=sized_for, own_pregrasp=convention == "dexaug")
 
-        return grasp_stages(grasp, convention, derive, through_touch=sized_for == "dgb")
+        stages = grasp_stages(grasp, convention, derive, through_touch=sized_for == "dgb")
+        p = self.config.dgb
+        if sized_for != "dgb" or stages.made_by != "dexaug" or not p.rehearse_closing:
+            return stages
+        pregrasps = pregrasp_candidates(stages, p.rehearsal_pregrasp_shares)
+        return rehearsed_stages(self.scene("dgb"), p, self.palm_world(grasp), pregrasps,
+                                p.rehearsal_fallback_squeeze_scales)
 
     def _close(self, scene: Scene, targets: GraspTargets) -> None:
         """Close the fingers of the grasp placed in ``scene`` onto ``targets``, here."""

@@ -1,0 +1,99 @@
+"""Choose a grasp's closing targets by rehearsing the benchmark's closing on the free object.
+
+Most grasps that fail DexGraspBench fail before its first push: the closing itself (pregrasp →
+grasp → squeeze, object free) shoves or turns the object out of its limits (README "Most `dgb`
+failures happen before the first push"). The ``dexaug`` convention derives its pregrasp and
+squeeze from the grasp's contacts, and its pregrasp has no single right answer for every grasp:
+whether a tendon-shared finger starts at the split that pressing leaves it in
+(:mod:`sim.validate.free_modes`) or at the grasp's own, and how far back along the contact
+normals the fingers start (``[common] pregrasp_backoff_m``). Every such pregrasp leads to the
+same squeeze (the same grip, so the same hold against the pushes): each is closed in the
+benchmark's own scene with the object free and no load, and the one that leaves the object
+nearest its starting pose is kept (ties: the earlier, see :func:`pregrasp_candidates`).
+
+Only where even that closing has already lost the object (past the benchmark's limits before
+any push, so the grasp fails as made) are gentler squeezes rehearsed from that pregrasp
+(``[dgb] rehearsal_fallback_squeeze_scales`` of the squeeze's travel past the grasp), and the
+calmest kept. Not before: a gentler squeeze closes more calmly and then loses the pushes (measured, README
+"Rehearsed closing"), so the squeeze's grip is traded away only where it has already failed.
+
+This is a generator rehearsing its own execution, as a grasp pipeline does before it commits
+to control targets; the pushes, which decide the verdict, are not rehearsed. Units: metres,
+radians; scores are dimensionless (drift over the benchmark's limit).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+
+import numpy as np
+
+from sim.validate.config import DgbParams
+from sim.validate.dgb import close, dgb_drift, dgb_penetration_m
+from sim.validate.stages import GraspStages
+from sim.world.scene import Scene
+
+__all__ = ["closing_score", "pregrasp_candidates", "rehearse", "rehearsed_stages", "squeeze_scaled"]
+
+
+def squeeze_scaled(stages: GraspStages, scales: Sequence[float]) -> list[GraspStages]:
+    """``stages`` with its squeeze moved to grasp + s·(squeeze − grasp) for each scale s (1: as
+    made), pregrasp and grasp unchanged."""
+    return [dataclasses.replace(stages, squeeze=stages.grasp + s * (stages.squeeze - stages.grasp))
+            for s in scales]
+
+
+def pregrasp_candidates(stages: GraspStages, shares: Sequence[float]) -> list[GraspStages]:
+    """``stages`` with its pregrasp moved to grasp + share·(pregrasp − grasp) for each share (1:
+    as made, 0: start at the grasp), from the made pregrasp and then from its own-split
+    alternative (``pregrasp_own_split``) where it has one; equal pregrasps listed once, first
+    kept. Squeeze and grasp unchanged."""
+    starts = [stages.pregrasp]
+    if stages.pregrasp_own_split is not None:
+        starts.append(stages.pregrasp_own_split)
+    out: list[GraspStages] = []
+    for share in shares:
+        for start in starts:
+            pre = stages.grasp + share * (start - stages.grasp)
+            if not any(np.array_equal(pre, c.pregrasp) for c in out):
+                out.append(dataclasses.replace(stages, pregrasp=pre))
+    return out
+
+
+def closing_score(scene: Scene, p: DgbParams, palm_world: tuple[np.ndarray, np.ndarray],
+                  stages: GraspStages) -> float:
+    """The free object's drift after the benchmark's closing of ``stages`` (no push), as a
+    fraction of the benchmark's limit: max(metres / max_displacement_m, radians /
+    max_rotation_rad). At 1 or above the grasp has already failed; infinite where the benchmark
+    would refuse the pregrasp for penetration."""
+    scene.reset_with_grasp(*palm_world, stages.pregrasp)
+    if max(dgb_penetration_m(scene)) > p.max_penetration_m:
+        return float("inf")
+    pos0, quat0 = scene.object_pose()
+    close(scene, p, stages)
+    moved_m, turned_rad = dgb_drift(pos0, quat0, *scene.object_pose())
+    return max(moved_m / p.max_displacement_m, turned_rad / p.max_rotation_rad)
+
+
+def rehearse(scene: Scene, p: DgbParams, palm_world: tuple[np.ndarray, np.ndarray],
+             candidates: Sequence[GraspStages]) -> tuple[int, np.ndarray]:
+    """(index of the candidate whose closing moves the free object least — the first of equals —,
+    every candidate's :func:`closing_score`). ``scene`` is the benchmark's (``dgb``) scene."""
+    if not candidates:
+        raise ValueError("rehearse: no candidate stages")
+    scores = np.array([closing_score(scene, p, palm_world, c) for c in candidates])
+    return int(np.argmin(scores)), scores
+
+
+def rehearsed_stages(scene: Scene, p: DgbParams, palm_world: tuple[np.ndarray, np.ndarray],
+                     pregrasps: Sequence[GraspStages], fallback_scales: Sequence[float]) -> GraspStages:
+    """The stages to run (module docstring): of ``pregrasps`` (the same squeeze from different
+    pregrasps, in order of preference) the calmest; where that closing scores 1 or more, the
+    calmest of it and of it with its squeeze at ``fallback_scales``."""
+    best, scores = rehearse(scene, p, palm_world, pregrasps)
+    if scores[best] < 1.0 or not fallback_scales:
+        return pregrasps[best]
+    gentler = squeeze_scaled(pregrasps[best], fallback_scales)
+    calmest, gentle_scores = rehearse(scene, p, palm_world, gentler)
+    return gentler[calmest] if gentle_scores[calmest] < scores[best] else pregrasps[best]
