@@ -34,7 +34,8 @@ from sim.validate.dgb import close, dgb_drift, dgb_penetration_m
 from sim.validate.stages import GraspStages
 from sim.world.scene import Scene
 
-__all__ = ["closing_score", "pregrasp_candidates", "rehearse", "rehearsed_stages", "squeeze_scaled"]
+__all__ = ["closing_score", "pregrasp_candidates", "rehearse", "rehearsed", "rehearsed_stages",
+           "squeeze_scaled"]
 
 
 def squeeze_scaled(stages: GraspStages, scales: Sequence[float]) -> list[GraspStages]:
@@ -97,3 +98,14 @@ def rehearsed_stages(scene: Scene, p: DgbParams, palm_world: tuple[np.ndarray, n
     gentler = squeeze_scaled(pregrasps[best], fallback_scales)
     calmest, gentle_scores = rehearse(scene, p, palm_world, gentler)
     return gentler[calmest] if gentle_scores[calmest] < scores[best] else pregrasps[best]
+
+
+def rehearsed(scene: Scene, p: DgbParams, palm_world: tuple[np.ndarray, np.ndarray],
+              stages: GraspStages) -> GraspStages:
+    """The stages the benchmark runs for ``stages`` as a convention made them: rehearsed
+    (:func:`rehearsed_stages` over :func:`pregrasp_candidates`, ``p``'s shares and scales) when
+    the ``dexaug`` convention made them and ``p.rehearse_closing``; else unchanged."""
+    if stages.made_by != "dexaug" or not p.rehearse_closing:
+        return stages
+    return rehearsed_stages(scene, p, palm_world, pregrasp_candidates(stages, p.rehearsal_pregrasp_shares),
+                            p.rehearsal_fallback_squeeze_scales)

@@ -7,7 +7,7 @@ the hand and the object, rejects it when the hand penetrates the object, derives
 and squeeze targets (:mod:`sim.validate.targets`), closes the fingers onto the object, measures
 the contacts and runs one protocol (:mod:`sim.validate.lift_drop`, :mod:`sim.validate.six_dir`).
 ``dgb`` is DexGraspBench's evaluation with its own scene (floating palm, kp 5 / ±3 N·m servos,
-0.1 kg object, μ 0.6) and closing (:mod:`sim.validate.dgb`, :mod:`sim.validate.stages`).
+0.1 kg object, μ 0.6) and closing (:mod:`sim.validate.dgb`, ``stages``, ``rehearsal``).
 
 lift-drop and six-dir multiply each hand servo's own kp by ``servo_kp_scale`` (5 by default,
 or the hand's own ``[validate] servo_kp_scale``; force limits stay the model's): kp is the
@@ -36,7 +36,7 @@ from sim.validate.effort import actuator_effort
 from sim.validate.lift_drop import Observer, lift_drop, unit_down
 from sim.validate.loads import hold_loads
 from sim.validate.program import Advance, Program, run_here
-from sim.validate.rehearsal import pregrasp_candidates, rehearsed_stages
+from sim.validate.rehearsal import rehearsed
 from sim.validate.result import Failure, ValidationResult
 from sim.validate.six_dir import six_dir
 from sim.validate.stages import GraspStages, grasp_stages
@@ -105,8 +105,7 @@ class Validator:
 
     @property
     def servos(self) -> ServoSettings:
-        """The hand servos of lift-drop and six-dir: ``[common] servo_kp_scale``, or the
-        hand's own ``[validate] servo_kp_scale`` where its hand.toml names one."""
+        """Lift-drop's and six-dir's servos: ``[common] servo_kp_scale`` or hand.toml's own."""
         scale = self.hand.config.validate_kp_scale
         return self.config.common.servos if scale is None else ServoSettings(kp_scale=scale)
 
@@ -159,8 +158,7 @@ class Validator:
             near = self.near_contacts(scene)
         servos = {} if dgb is None else {
             "act_stiffness": servo_stiffness_from(dgb, scene), "act_limits": servo_limits_from(dgb, scene),
-            "settle_modes": own_pregrasp and self.config.dgb.settle_free_modes,
-            "self_clear": own_pregrasp}
+            "settle_modes": own_pregrasp and self.config.dgb.settle_free_modes, "self_clear": own_pregrasp}
         return targets_from_contacts(scene, self.hand, q, near, self.config.common, self._finger_mask,
                                      loads, **servos)
 
@@ -168,11 +166,8 @@ class Validator:
                sized_for: str = "lift-drop") -> GraspStages:
         """Pregrasp, grasp and squeeze of ``grasp``: its own when it carries them, else made by
         ``convention`` (default: ``[dgb] squeeze_convention``; :mod:`sim.validate.stages`),
-        whose ``dexaug`` targets come from the lift-drop scene's contacts with the grip sized
-        for protocol ``sized_for`` (:meth:`derive_targets`; an arm's lift: ``lift-drop``). For
-        the benchmark (``sized_for="dgb"``) the ``dexaug`` convention's made targets are
-        chosen by rehearsing the benchmark's closing (:mod:`sim.validate.rehearsal`; ``[dgb]
-        rehearse_closing``)."""
+        whose ``dexaug`` targets come from the lift-drop scene's contacts with the grip sized for
+        ``sized_for`` (:meth:`derive_targets`; arm lift: ``lift-drop``; ``dgb``: rehearsed)."""
         self.hand.check_q(grasp.joints, "grasp joints")
         convention = convention or self.config.dgb.squeeze_convention
 
@@ -182,12 +177,8 @@ class Validator:
             return self.derive_targets(scene, q, sized_for=sized_for, own_pregrasp=convention == "dexaug")
 
         stages = grasp_stages(grasp, convention, derive, through_touch=sized_for == "dgb")
-        p = self.config.dgb
-        if sized_for != "dgb" or stages.made_by != "dexaug" or not p.rehearse_closing:
-            return stages
-        pregrasps = pregrasp_candidates(stages, p.rehearsal_pregrasp_shares)
-        return rehearsed_stages(self.scene("dgb"), p, self.palm_world(grasp), pregrasps,
-                                p.rehearsal_fallback_squeeze_scales)
+        return stages if sized_for != "dgb" else rehearsed(self.scene("dgb"), self.config.dgb,
+                                                           self.palm_world(grasp), stages)
 
     def _close(self, scene: Scene, targets: GraspTargets) -> None:
         """Close the fingers of the grasp placed in ``scene`` onto ``targets``, here."""
