@@ -47,3 +47,10 @@ def without_settled_modes(config):
     mechanisms measured before the settling, and of the settling itself."""
     return dataclasses.replace(config, dgb=dataclasses.replace(config.dgb,
                                                                settle_free_modes=False))
+
+
+def without_rehearsal(config):
+    """``config`` (a ValidateConfig) with the ``dgb`` closing not rehearsed (``[dgb]
+    rehearse_closing`` off): for tests of the targets' own mechanisms measured before the
+    rehearsal chose among them (sim.validate.rehearsal)."""
+    return dataclasses.replace(config, dgb=dataclasses.replace(config.dgb, rehearse_closing=False))
