@@ -283,6 +283,42 @@ def test_demo_seeded_run_ends_cleanly(shadow, can_setup, caplog) -> None:  # typ
 
 @needs_menagerie
 @needs_ycb
+def test_palm_candidates_keep_exactly_those_clear_of_palm_box_and_table(shadow, can_setup) -> None:  # type: ignore[no-untyped-def]
+    """Step 2 checks the table first and the palm box only on what is left (the cloud's
+    transform is most of the work): the candidates kept are exactly those of the same draws that
+    pass both checks, each counted once, and the checks reject some (the test can fail)."""
+    from augment.fsg.candidates import palm_candidates
+
+    _, ws, cloud = can_setup
+    params = load_fsg_params(shadow.config)
+    centre = np.asarray(shadow.config.palm.box_center)
+    half = np.asarray(shadow.config.palm.box_half_extents)
+    table = TablePlane.horizontal(cloud.z_min_m)
+    fc0 = ws.finger("thumb")
+    points, normals, part = np.asarray(cloud.points), np.asarray(cloud.normals), cloud.part_indices
+
+    def draw(tab, max_points, stats):  # type: ignore[no-untyped-def]
+        p = dataclasses.replace(params, max_palm_points=max_points)
+        return palm_candidates(np.random.default_rng(7), points, normals, part, fc0, 40,
+                               palm_center=centre, palm_half=half, table=tab, params=p, stats=stats)
+
+    every = draw(None, len(points), {"candidates": 0, "palm": 0, "table": 0})
+    stats = {"candidates": 0, "palm": 0, "table": 0}
+    kept = draw(table, params.max_palm_points, stats)
+    in_box = (np.abs(every.full - centre) <= half).all(axis=2).sum(axis=1)
+    verts = palm_box_vertices(centre, half)
+    v_obj = np.einsum("cji,cvj->cvi", every.rot, verts[None] - every.trans[:, None])
+    above = table.elevation_m(v_obj).min(axis=1) >= params.table_clearance_m
+    clear = above & (in_box <= params.max_palm_points)
+    assert stats["candidates"] == len(every.rot) == 40 * params.inner
+    assert 0 < clear.sum() < len(clear) and stats["table"] == int((~above).sum()) > 0
+    assert stats["palm"] == int((above & ~clear).sum()) > 0
+    np.testing.assert_array_equal(kept.rot, every.rot[clear])
+    np.testing.assert_array_equal(kept.full, every.full[clear])
+    np.testing.assert_array_equal(kept.first_pos, every.first_pos[clear])
+
+
+@needs_ycb
 def test_table_mode_keeps_the_palm_above_the_table(shadow, can_setup) -> None:  # type: ignore[no-untyped-def]
     _, ws, cloud = can_setup
     params = load_fsg_params(shadow.config)

@@ -146,11 +146,12 @@ def match_fingers(rng: np.random.Generator, fingers: Sequence[str], first: str,
         if not len(a_idx):
             break
         fc = clouds[f]
-        q_pts = part_full[a_idx].reshape(-1, 3)
-        q_nrm = part_nrm[a_idx].reshape(-1, 3)
+        q_pts = (part_full if len(a_idx) == c_all else part_full[a_idx]).reshape(-1, 3)
         lo, hi = index.boxes[f]
-        near = np.flatnonzero(np.all((q_pts >= lo) & (q_pts <= hi), axis=1))
-        q6 = np.hstack([q_pts[near], -index.lam * q_nrm[near]])
+        in_box = (q_pts >= lo) & (q_pts <= hi)
+        near = np.flatnonzero(in_box[:, 0] & in_box[:, 1] & in_box[:, 2])
+        q_nrm = part_nrm.reshape(-1, 3)[a_idx[near // n_part] * n_part + near % n_part]
+        q6 = np.hstack([q_pts[near], -index.lam * q_nrm])
         dist, idx = index.trees[f].query(q6, k=p.k_neighbours, distance_upper_bound=index.bound)
         flat, kk = np.nonzero(np.isfinite(dist))
         wk = idx[flat, kk]

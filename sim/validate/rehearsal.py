@@ -30,7 +30,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from sim.validate.config import DgbParams
-from sim.validate.dgb import close, dgb_drift, dgb_penetration_m
+from sim.validate.dgb import closed, dgb_drift, dgb_penetration_m
 from sim.validate.stages import GraspStages
 from sim.world.scene import Scene
 
@@ -67,12 +67,13 @@ def closing_score(scene: Scene, p: DgbParams, palm_world: tuple[np.ndarray, np.n
     """The free object's drift after the benchmark's closing of ``stages`` (no push), as a
     fraction of the benchmark's limit: max(metres / max_displacement_m, radians /
     max_rotation_rad). At 1 or above the grasp has already failed; infinite where the benchmark
-    would refuse the pregrasp for penetration."""
+    would refuse the pregrasp for penetration. The closing is kept (:func:`closed`): the
+    benchmark's run of the kept candidate starts from it."""
     scene.reset_with_grasp(*palm_world, stages.pregrasp)
     if max(dgb_penetration_m(scene)) > p.max_penetration_m:
         return float("inf")
     pos0, quat0 = scene.object_pose()
-    close(scene, p, stages)
+    closed(scene, p, palm_world, stages)
     moved_m, turned_rad = dgb_drift(pos0, quat0, *scene.object_pose())
     return max(moved_m / p.max_displacement_m, turned_rad / p.max_rotation_rad)
 
