@@ -23,7 +23,7 @@ pytestmark = [needs_menagerie, needs_ycb]
 
 def test_a_live_recording_is_augmented_into_a_dataset(tmp_path: Path) -> None:
     out = tmp_path / "datasets"
-    hook = _auto_augment(out, Console(quiet=True), ("--n", "20", "--budget", "40", "--gallery", "0"))
+    hook = _auto_augment(out, Console(quiet=True), ("--n", "8", "--budget", "40", "--gallery", "0"))
     session = _record(tmp_path / "live.mcap", mark=False, on_recording_closed=hook)
     (demo,) = extract_demos(session)
     assert "thumb" in demo.fingers and len(demo.fingers) >= 2

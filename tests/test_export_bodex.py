@@ -175,6 +175,7 @@ def test_the_grasp_stage_is_the_one_dgb_closes_through(tmp_path: Path) -> None:
     where not, and, derived under ``dexaug``, the validator's touching grasp stage."""
     from augment import dataset
     from augment.export import read_bodex
+    from augment.grasp_table import select_rows
     from sim.grasp import Grasp
     from sim.validate.validator import Validator
     from sim.world.objects import load_object
@@ -196,14 +197,15 @@ def test_the_grasp_stage_is_the_one_dgb_closes_through(tmp_path: Path) -> None:
     for col in ("pregrasp_pose", "squeeze_pose", "touch_pose"):   # never simulated
         table.columns[col][:] = np.nan
     bare = tmp_path / "bare.h5"
-    dataset.save(bare, {name: table})
+    dataset.save(bare, {name: select_rows(table, np.arange(len(table)) < 3)})   # each is rehearsed
     _export(bare, tmp_path / "derived", "bodex", "--squeeze-convention", "dexaug")
     v = Validator(hand, load_object(name))
-    for r in read_bodex(tmp_path / "derived"):
+    derived = read_bodex(tmp_path / "derived")
+    assert sorted(r["dexaug_index"] for r in derived) == [0, 1, 2]
+    for r in derived:
         i = r["dexaug_index"]
-        if i < 3:
-            palm = table["palm_pose"][i]
-            want = v.stages(Grasp.from_arrays(palm[:3], palm[3:], table["hand_pose"][i]),
-                            "dexaug", sized_for="dgb")
-            np.testing.assert_allclose(r["grasp_qpos"][7:], want.grasp[idx], atol=1e-12)
-            assert np.abs(want.grasp - table["hand_pose"][i]).max() > 1e-4   # it moved
+        palm = table["palm_pose"][i]
+        want = v.stages(Grasp.from_arrays(palm[:3], palm[3:], table["hand_pose"][i]),
+                        "dexaug", sized_for="dgb")
+        np.testing.assert_allclose(r["grasp_qpos"][7:], want.grasp[idx], atol=1e-12)
+        assert np.abs(want.grasp - table["hand_pose"][i]).max() > 1e-4   # it moved
