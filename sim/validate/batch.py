@@ -117,8 +117,8 @@ def validate_many(hand: str, obj: str, grasps: Sequence[Grasp], protocol: str = 
             grasps, protocol, squeeze_convention=squeeze_convention, progress=progress,
             backend=backend, gravity_dir=None if gravity_dir is None else np.asarray(gravity_dir))
     # small chunks: progress stays live and the workers finish close together (while the last
-    # chunk runs, the other workers idle: 8 chunks per worker, not 2, took tests/test_dgb_reference.py
-    # from 107 to 95 s)
+    # chunk runs, the other workers idle; 8 chunks per worker instead of 2: tests/test_dgb_reference.py
+    # 107 -> 95 s, one run each)
     size = max(1, min(BATCH_SIMS, len(grasps) // (workers * 8)))
     down = None if gravity_dir is None else tuple(float(v) for v in gravity_dir)
     chunks = [(hand, obj, cfg, list(grasps[i:i + size]), protocol, squeeze_convention, down)
