@@ -13,8 +13,9 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 
-#: records /hands and /state at 200 Hz to argv[1] and prints "frames-written frames-flushed"
-#: after every frame; argv[2], when given, is the recorder's flush interval in seconds
+#: records /hands and /state at 200 Hz to argv[1]; before each frame it prints "frames-started
+#: frames-flushed" (a kill can land inside a write whose flush already reached the disk, so the
+#: frame under way counts as started); argv[2], when given, is the flush interval in seconds
 _CHILD = textwrap.dedent("""
     import sys, time
     import numpy as np
@@ -30,12 +31,12 @@ _CHILD = textwrap.dedent("""
                      np.ones(NUM_JOINTS, bool))
     i, t_next = 0, time.monotonic()
     while True:
+        print(i + 1, rec.stats.flushed["/hands"], flush=True)
         rec.write_hands(HandFrame(i, i / 200, i / 200, [0.0, 0.0, 1.6], [1.0, 0.0, 0.0, 0.0],
                                   right=hand, source="child"))
         rec.write_state(np.full(24, 0.01 * i), [0, 0, 1], [1, 0, 0, 0], [0.5, 0, 0.8],
                         [1, 0, 0, 0], seq=i)
         i += 1
-        print(i, rec.stats.flushed["/hands"], flush=True)
         t_next += 0.005
         time.sleep(max(0.0, t_next - time.monotonic()))
 """)
@@ -44,7 +45,8 @@ _CHILD = textwrap.dedent("""
 def record_then_kill(path: Path, run_s: float, flush_interval_s: float | None = None
                      ) -> tuple[int, int]:
     """Record to ``path`` in a child process for ``run_s`` seconds after its first frame, kill
-    it with SIGKILL, and return (frames written, frames flushed) as it last reported them."""
+    it with SIGKILL, and return (frames started, frames flushed) as it last reported them: the
+    file holds at least the flushed frames and at most the started ones."""
     args = [sys.executable, "-c", _CHILD, str(path)]
     if flush_interval_s is not None:
         args.append(str(flush_interval_s))
@@ -59,5 +61,5 @@ def record_then_kill(path: Path, run_s: float, flush_interval_s: float | None = 
         out, _ = child.communicate(timeout=10)
     assert child.returncode == -signal.SIGKILL
     lines = [ln.split() for ln in (first + out).splitlines() if len(ln.split()) == 2]
-    written, flushed = map(int, lines[-1])
-    return written, flushed
+    started, flushed = map(int, lines[-1])
+    return started, flushed

@@ -249,16 +249,16 @@ def test_chunks_are_time_bounded(tmp_path: Path) -> None:
 def test_killed_recorder_leaves_a_readable_file(tmp_path: Path,
                                                 caplog: pytest.LogCaptureFixture) -> None:
     path = tmp_path / "killed.mcap"
-    written, flushed = record_then_kill(path, 1.5)
-    assert written > 150  # about 300 at 200 Hz
+    started, flushed = record_then_kill(path, 1.5)
+    assert started > 150  # about 300 at 200 Hz
 
     with caplog.at_level(logging.WARNING, logger="teleop.record.session"):
         s = open_session(path)
     assert s.truncated and s.stop_offset <= s.file_size
     assert "truncated at byte offset" in caplog.text
     n = s.counts["/hands"]
-    assert flushed <= n <= written  # everything flushed before the kill is there
-    assert n > 0.5 * written  # a crash loses at most the last chunk (<= 0.5 s of 1.5 s)
+    assert flushed <= n <= started  # everything flushed before the kill is there
+    assert n > 0.5 * started  # a crash loses at most the last chunk (<= 0.5 s of 1.5 s)
     assert s.counts["/state"] >= n - 1
     seqs = [f.seq for _, f in s.hands()]
     assert seqs == list(range(n))

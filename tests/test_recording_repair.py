@@ -91,7 +91,7 @@ def test_truncated_recording_is_repaired_at_every_kind_of_cut(tmp_path: Path) ->
 
 def test_recorder_killed_with_sigkill_is_repaired(tmp_path: Path) -> None:
     path = tmp_path / "killed.mcap"
-    written, flushed = record_then_kill(path, 1.2, flush_interval_s=0.1)
+    started, flushed = record_then_kill(path, 1.2, flush_interval_s=0.1)
     assert _plain_fails(path)
     killed = open_session(path)
     assert killed.truncated
@@ -101,7 +101,7 @@ def test_recorder_killed_with_sigkill_is_repaired(tmp_path: Path) -> None:
     want = Counter((m.topic, m.log_time_ns, m.sequence, m.data) for m in killed.messages())
     assert got == want and sum(got.values()) == sum(report.messages.values())
     hands = sorted(m for m in got if m[0] == "/hands")
-    assert flushed <= len(hands) <= written and len(hands) > 100
+    assert flushed <= len(hands) <= started and len(hands) > 100
     assert [m[2] for m in hands] == list(range(1, len(hands) + 1))   # no hole (the SDK counts from 1)
     assert report.messages["/state"] >= len(hands) - 1
     assert [e["type"] for _, e in open_session(tmp_path / "fixed.mcap").events()] == [
