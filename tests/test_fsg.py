@@ -398,6 +398,29 @@ def test_exact_penetration_needs_a_loadable_object(shadow) -> None:  # type: ign
         ScenePenetration.of(shadow.name, "no_such_object_xyz")
 
 
+@needs_menagerie
+@needs_ycb
+def test_exact_penetration_refuses_fingers_inside_each_other(shadow) -> None:  # type: ignore[no-untyped-def]
+    """Half a metre above the object, so the hand touches nothing but itself: the middle finger
+    spread towards the forefinger by 0.1 rad overlaps it by ≈ 3 mm (within the 5 mm the
+    validator allows the hand into the object), by 0.15 rad ≈ 7 mm (refused)."""
+    from sim.grasp import Grasp
+    from sim.validate.batch import cached_validator
+    from sim.validate.self_clearance import self_penetration_m
+
+    check = ScenePenetration(shadow.name, "005_tomato_soup_can")
+    scene = cached_validator(shadow.name, "005_tomato_soup_can").scene("lift-drop")
+    verdicts = {}
+    for spread_rad in (0.0, 0.1, 0.15):
+        q = np.zeros(len(shadow.joint_names))
+        q[list(shadow.joint_names).index("rh_MFJ4")] = spread_rad
+        grasp = Grasp(np.array([0.0, 0.0, 0.5]), np.array([1.0, 0.0, 0.0, 0.0]), q)
+        verdicts[spread_rad] = (check(grasp), 1e3 * self_penetration_m(scene, q))
+    assert verdicts[0.0] == (False, 0.0)
+    assert not verdicts[0.1][0] and 1.0 < verdicts[0.1][1] < 5.0
+    assert verdicts[0.15][0] and verdicts[0.15][1] > 5.0
+
+
 # ------------------------------------------------------------------------------ dataset
 
 

@@ -136,7 +136,8 @@ class Sampler:
 
     def _finish(self, fingers: tuple[str, ...], s_idx: np.ndarray, cands: Candidates,
                 chosen: dict[str, np.ndarray]) -> None:
-        """Steps 5–8 on the matched candidates ``s_idx``, in order."""
+        """Steps 5–8 on the matched candidates ``s_idx``: the cheap checks first, then the
+        de-duplication, the exact penetration check and the quality (the costly ones)."""
         p, s = self.params, self.setup
         for c in s_idx:
             r, t = cands.rot[c], cands.trans[c]
@@ -154,12 +155,6 @@ class Sampler:
                     self.normals, p.link_clearance_m):
                 self.stats["link"] += 1
                 continue
-            cpts, cnrm = self.points[idx], self.normals[idx]
-            m = grasp_quality(cpts, cnrm, s.cloud, p)
-            closure = m.epsilon > p.min_epsilon
-            if not closure and self.require_closure:
-                self.stats["epsilon"] += 1
-                continue
             # palm pose in the object frame: inverse of object → palm
             palm_rot = r.T
             palm_pos = -palm_rot @ t
@@ -171,8 +166,16 @@ class Sampler:
                 self.stats["duplicate"] += 1
                 continue
             grasp = Grasp(palm_pos, quat, q)
+            # the exact check (≈ 2 ms) before the quality's hull (≈ 10 ms): a third of the
+            # candidates that reach it put fingers into each other (sim.validate.batch)
             if s.exact_penetration is not None and s.exact_penetration(grasp):
                 self.stats["penetration"] += 1
+                continue
+            cpts, cnrm = self.points[idx], self.normals[idx]
+            m = grasp_quality(cpts, cnrm, s.cloud, p)
+            closure = m.epsilon > p.min_epsilon
+            if not closure and self.require_closure:
+                self.stats["epsilon"] += 1
                 continue
             ratio = (s.hold.grip_ratio(cpts, cnrm, finger_i) if s.hold is not None
                      else float("nan"))
