@@ -37,7 +37,8 @@ if TYPE_CHECKING:
 __all__ = ["Dedup", "EffortScore", "PenetrationCheck", "eq3_crossing", "grasp_quality", "link_penetrates"]
 
 #: The exact penetration check FSG is given (step 6): ``True`` when the grasp, placed in the
-#: validator's MuJoCo scene, penetrates the object deeper than the validator allows. Injected
+#: validator's MuJoCo scene, penetrates the object — or its own links each other — deeper than
+#: the validator allows. It runs after de-duplication and before the quality. Injected
 #: (a picklable callable, e.g. :class:`sim.validate.batch.ScenePenetration`) so that the
 #: sampler never imports the physics validator.
 PenetrationCheck = Callable[[Grasp], bool]
