@@ -9,9 +9,10 @@
    ``link_radius_m``, from its folder) to the nearest object point also counts: eq. 3 only sees
    the skeleton *cross* the surface, while links lie at their radius around the skeleton, so a
    link can sink into a convex object without its axis crossing it. Both are point-cloud
-   approximations of the links, so the last check of an otherwise accepted grasp is a
-   :data:`PenetrationCheck` in the validator's MuJoCo scene, given by the caller (the only mesh
-   collision FSG computes, once per output grasp).
+   approximations of the links, so step 6 ends with a :data:`PenetrationCheck` in the
+   validator's MuJoCo scene, given by the caller (the only mesh collision FSG computes, once per
+   candidate that passes the point-cloud checks and is no duplicate); it also refuses the hand's
+   own links inside each other (each finger's posture comes from its own workspace cloud).
 7. **Quality** (:func:`grasp_quality`): Q1 (ε) and volume via :func:`sim.metrics.gws.gws_metrics`
    (μ, ``n_edges`` cone edges, centre = centre of mass, torque / max radius) on the contacts
    with inward normals; ε ≤ ``min_epsilon`` is dropped (until relaxed, :mod:`augment.fsg.run`).
