@@ -23,8 +23,8 @@ from sim.pools import persistent_pool
 from sim.validate.config import ValidateConfig
 from sim.validate.loads import hold_loads
 from sim.validate.result import ValidationResult
-from sim.validate.self_clearance import self_penetration_m
 from sim.validate.validator import BATCH_SIMS, Validator
+from sim.world.contacts import contacts_between
 from sim.world.objects import load_object
 
 _VALIDATORS: dict[tuple[str, str, str | None], Validator] = {}
@@ -69,8 +69,13 @@ class ScenePenetration:
     def __call__(self, grasp: Grasp) -> bool:
         v = cached_validator(self.hand, self.obj, self.config_path)
         limit_m = v.config.common.max_penetration_m
-        return (v.penetration_m(grasp) > limit_m   # places the grasp in the lift-drop scene
-                or self_penetration_m(v.scene("lift-drop"), grasp.joints) > limit_m)
+        if v.penetration_m(grasp) > limit_m:
+            return True
+        # penetration_m left the grasp placed in the lift-drop scene, its contacts computed:
+        # the hand–hand ones come from the same collision pass
+        scene = v.scene("lift-drop")
+        return contacts_between(scene.model, scene.data, scene.hand_geom_mask,
+                                scene.hand_geom_mask).max_penetration_m > limit_m
 
 
 @dataclass(frozen=True)
