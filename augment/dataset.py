@@ -15,9 +15,10 @@ Layout (one group per object, with the reference implementation's column names `
     metres; normals outward) with ``contact_finger`` (M) int8 (index into ``finger_names``) and
     ``contact_offsets`` (N+1) int64: grasp i owns rows ``offsets[i]:offsets[i+1]``;
     validation columns ``passed`` (N) bool, ``failure`` (N) strings ("" when passed or not
-    validated), ``displacement_m``, ``rotation_rad``, ``penetration_m``, ``sim_epsilon`` (N)
-    (NaN when not validated; −1 when the simulated contacts after closing are not in force
-    closure, the GWS convention of :mod:`sim.metrics.gws`); ``pregrasp_pose`` /
+    validated), ``displacement_m``, ``rotation_rad``, ``penetration_m`` (the hand's deepest
+    into the object or into itself), ``sim_epsilon`` (N) (NaN when not validated; −1 when the
+    simulated contacts after closing are not in force closure, the GWS convention of
+    :mod:`sim.metrics.gws`); ``pregrasp_pose`` /
     ``squeeze_pose`` (N,J) radians: the joint vectors the validator closed from and to (NaN
     when not simulated), ``touch_pose`` (N,J) radians: the grasp stage ``dgb`` closed through
     between them (NaN for other protocols; :mod:`sim.validate.stages`; a file written before it

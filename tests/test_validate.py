@@ -1,5 +1,6 @@
 """Grasp validator ground truth: hand-built grasps hold under both protocols; an open hand
-beside the object, a grasp on air and a deeply interpenetrating grasp fail, each for its reason."""
+beside the object, a grasp on air, a deeply interpenetrating grasp and a hand inside itself
+fail, each for its reason."""
 
 from __future__ import annotations
 
@@ -81,6 +82,25 @@ def test_deep_interpenetration_is_rejected_before_simulating(validators, referen
     assert (result.passed, result.failure) == (False, Failure.PENETRATION)
     assert result.penetration_m > 0.005
     assert result.phases == {}  # nothing was simulated
+
+
+@pytest.mark.parametrize("protocol", ["lift-drop", "six-dir"])
+def test_fingers_inside_each_other_are_rejected_before_simulating(validators, shadow: Hand,
+                                                                  protocol: str) -> None:
+    """Half a metre from the object, so the hand touches only itself: the middle finger spread
+    towards the forefinger by 0.15 rad is ≈ 7 mm inside it, a pose no hand can take (refused
+    like a hand 7 mm into the object); by 0.1 rad ≈ 3 mm, within the 5 mm allowed, it is
+    simulated (and holds nothing)."""
+    q = np.zeros(len(shadow.joint_names))
+    verdicts = {}
+    for spread_rad in (0.1, 0.15):
+        q[list(shadow.joint_names).index("rh_MFJ4")] = spread_rad
+        far = Grasp(np.array([0.0, 0.0, 0.5]), np.array([1.0, 0.0, 0.0, 0.0]), q.copy())
+        verdicts[spread_rad] = validators["005_tomato_soup_can"].validate(far, protocol)
+    assert verdicts[0.1].failure == Failure.NO_CONTACT
+    assert 0.001 < verdicts[0.1].penetration_m < 0.005
+    assert verdicts[0.15].failure == Failure.PENETRATION
+    assert verdicts[0.15].penetration_m > 0.005 and verdicts[0.15].phases == {}
 
 
 def _key(result) -> str:

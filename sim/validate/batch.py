@@ -24,7 +24,6 @@ from sim.validate.config import ValidateConfig
 from sim.validate.loads import hold_loads
 from sim.validate.result import ValidationResult
 from sim.validate.validator import BATCH_SIMS, Validator
-from sim.world.contacts import contacts_between
 from sim.world.objects import load_object
 
 _VALIDATORS: dict[tuple[str, str, str | None], Validator] = {}
@@ -68,14 +67,7 @@ class ScenePenetration:
 
     def __call__(self, grasp: Grasp) -> bool:
         v = cached_validator(self.hand, self.obj, self.config_path)
-        limit_m = v.config.common.max_penetration_m
-        if v.penetration_m(grasp) > limit_m:
-            return True
-        # penetration_m left the grasp placed in the lift-drop scene, its contacts computed:
-        # the hand–hand ones come from the same collision pass
-        scene = v.scene("lift-drop")
-        return contacts_between(scene.model, scene.data, scene.hand_geom_mask,
-                                scene.hand_geom_mask).max_penetration_m > limit_m
+        return v.penetration_m(grasp) > v.config.common.max_penetration_m
 
 
 @dataclass(frozen=True)

@@ -140,7 +140,7 @@ def run_dgb(scene: Scene, p: DgbParams, palm_world: tuple[np.ndarray, np.ndarray
     m, d = scene.model, scene.data
     scene.reset_with_grasp(*palm_world, stages.pregrasp)
     ho, hh = dgb_penetration_m(scene)
-    result.penetration_m = ho
+    result.penetration_m = max(ho, hh)   # as every protocol reports it: into the object or itself
     if ho > p.max_penetration_m or hh > p.max_penetration_m:
         result.failure = Failure.PENETRATION
         return

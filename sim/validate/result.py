@@ -17,7 +17,7 @@ __all__ = ["Failure", "PhaseResult", "ValidationResult"]
 class Failure(StrEnum):
     """Why a grasp failed, checked in this order."""
 
-    PENETRATION = "penetration"        # hand–object penetration above the limit before simulating
+    PENETRATION = "penetration"        # hand into object or itself above the limit before simulating
     NO_CONTACT = "no_contact"          # no hand body near the object: a grasp on air
     LOST_CONTACT = "lost_contact"      # fingers closed but nothing touches the object
     SLIPPED = "slipped"                # object moved/rotated past the limits while lifted or pushed

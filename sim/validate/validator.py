@@ -1,11 +1,10 @@
 """Physical grasp validation in MuJoCo: the ``lift-drop``, ``six-dir`` and ``dgb`` protocols
 (DESIGN §5).
 
-The augmenter only checks grasps analytically; a grasp is kept when it also holds in simulation.
 :class:`Validator` places a grasp (palm pose in the object frame + joint vector) in a scene of
-the hand and the object, rejects it when the hand penetrates the object, derives its pregrasp
-and squeeze targets (:mod:`sim.validate.targets`), closes the fingers onto the object, measures
-the contacts and runs one protocol (:mod:`sim.validate.lift_drop`, :mod:`sim.validate.six_dir`).
+the hand and the object, rejects it when the hand penetrates the object or itself, derives its
+pregrasp and squeeze targets (:mod:`sim.validate.targets`), closes the fingers onto the object,
+measures the contacts and runs one protocol (:mod:`sim.validate.lift_drop`, ``six_dir``).
 ``dgb`` is DexGraspBench's evaluation with its own scene (floating palm, kp 5 / ±3 N·m servos,
 0.1 kg object, μ 0.6) and closing (:mod:`sim.validate.dgb`, ``stages``, ``rehearsal``).
 
@@ -233,15 +232,16 @@ class Validator:
         return actuator_effort(scene, self.near_contacts(scene), self._finger_mask, hold)
 
     def penetration_m(self, grasp: Grasp, protocol: str = "lift-drop") -> float:
-        """Deepest hand–object penetration (metres, 0 when none) of the grasp placed as
-        :meth:`validate` places it: the check validate() makes before simulating, public so a
-        sampler can drop what would fail it (one collision pass, no simulation)."""
+        """Deepest penetration (metres, 0 when none) of the hand into the object or into itself
+        (links inside each other: a pose no hand can take), the grasp placed as :meth:`validate`
+        places it: the check validate() makes before simulating, public so a sampler can drop
+        what would fail it (one collision pass, no simulation)."""
         q = self.hand.check_q(grasp.joints, "grasp joints")
         if q.ndim != 1:
             raise ValueError("one grasp at a time; use sim.validate.batch for many")
-        scene = self.scene(protocol)
-        self._place(scene, grasp, q)
-        return self._hand_object_contacts(scene).max_penetration_m
+        self._place(scene := self.scene(protocol), grasp, q)
+        hand_hand = contacts_between(scene.model, scene.data, scene.hand_geom_mask, scene.hand_geom_mask)
+        return max(self._hand_object_contacts(scene).max_penetration_m, hand_hand.max_penetration_m)
 
     def validate(self, grasp: Grasp, protocol: str = "lift-drop", *,
                  squeeze_convention: str | None = None,
