@@ -54,3 +54,11 @@ def without_rehearsal(config):
     rehearse_closing`` off): for tests of the targets' own mechanisms measured before the
     rehearsal chose among them (sim.validate.rehearsal)."""
     return dataclasses.replace(config, dgb=dataclasses.replace(config.dgb, rehearse_closing=False))
+
+
+def without_drift_correction(config):
+    """``config`` (a ValidateConfig) with the rehearsed ``dgb`` squeeze not corrected for its
+    closing's drift (``[dgb] rehearsal_drift_corrections = 0``): for tests of mechanisms
+    measured before the correction moved the squeeze (sim.validate.rehearsal)."""
+    return dataclasses.replace(config, dgb=dataclasses.replace(config.dgb,
+                                                               rehearsal_drift_corrections=0))

@@ -25,7 +25,7 @@ from sim.validate.result import ValidationResult
 from sim.validate.targets import least_grip_total_n, servo_stiffness_from
 from sim.validate.validator import Validator
 from sim.world.objects import load_object
-from tests.conftest import needs_ycb, without_grip_boost, without_settled_modes
+from tests.conftest import needs_ycb, without_drift_correction, without_grip_boost, without_settled_modes
 
 #: a grasp of the same augmentation that holds six-dir's pushes with the squeeze sized for them
 #: (5 mm, 6°) and turns 20° out of it with the one sized for the weight
@@ -209,7 +209,9 @@ def test_contacts_that_cannot_hold_a_push_get_the_spare_links_pressed_too(
 
     # measured with the grasp's own split of the fingers' free modes (settling them alone
     # also holds this grasp with its 5 mm contacts)
-    v = Validator(shadow, load_object("024_bowl"), without_settled_modes(ValidateConfig.load()))
+    # and before the squeeze's drift correction, which holds it either way (13.8°)
+    v = Validator(shadow, load_object("024_bowl"),
+                  without_drift_correction(without_settled_modes(ValidateConfig.load())))
     cfg = v.config
     scene = v.scene("lift-drop")
     v._place(scene, BOWL_RIM_GRASP, BOWL_RIM_GRASP.joints)

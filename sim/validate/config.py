@@ -106,6 +106,7 @@ class DgbParams:
     rehearse_closing: bool
     rehearsal_pregrasp_shares: tuple[float, ...]
     rehearsal_fallback_squeeze_scales: tuple[float, ...]
+    rehearsal_drift_corrections: int
 
 
 def _contact(sec: Section) -> ContactParams:
@@ -127,7 +128,7 @@ def _load_dgb(sec: Section) -> DgbParams:
                         "force_per_kg", "push_time_s", "check_every_steps",
                         "max_displacement_m", "max_rotation_deg", "squeeze_convention",
                         "settle_free_modes", "rehearse_closing", "rehearsal_pregrasp_shares",
-                        "rehearsal_fallback_squeeze_scales"})
+                        "rehearsal_fallback_squeeze_scales", "rehearsal_drift_corrections"})
     shares = tuple(sec.floats("rehearsal_pregrasp_shares"))
     if not shares or any(not 0.0 <= s <= 1.0 for s in shares):
         raise sec.error("rehearsal_pregrasp_shares",
@@ -162,7 +163,8 @@ def _load_dgb(sec: Section) -> DgbParams:
         max_rotation_rad=np.deg2rad(sec.float("max_rotation_deg", min=0.0, max=180.0)),
         squeeze_convention=convention, settle_free_modes=sec.bool("settle_free_modes"),
         rehearse_closing=sec.bool("rehearse_closing"), rehearsal_pregrasp_shares=shares,
-        rehearsal_fallback_squeeze_scales=scales)
+        rehearsal_fallback_squeeze_scales=scales,
+        rehearsal_drift_corrections=sec.int("rehearsal_drift_corrections", min=0))
 
 
 def _choice(sec: Section, key: str, allowed: tuple[str, ...]) -> str:

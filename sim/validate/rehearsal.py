@@ -17,6 +17,12 @@ any push, so the grasp fails as made) are gentler squeezes rehearsed from that p
 calmest kept. Not before: a gentler squeeze closes more calmly and then loses the pushes (measured, README
 "Rehearsed closing"), so the squeeze's grip is traded away only where it has already failed.
 
+Last, the squeeze is corrected for the drift its rehearsed closing still leaves
+(:func:`drift_corrected`, ``[dgb] rehearsal_drift_corrections`` times): the fingers are position
+servos, springs around their targets, so a grip that holds the object displaced by a rigid
+motion holds it back where it was once every target moves by that motion's inverse at the
+contacts. The calmest of the corrected closings and the uncorrected one is kept.
+
 This is a generator rehearsing its own execution, as a grasp pipeline does before it commits
 to control targets; the pushes, which decide the verdict, are not rehearsed. Units: metres,
 radians; scores are dimensionless (drift over the benchmark's limit).
@@ -27,15 +33,23 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Sequence
 
+import mujoco
 import numpy as np
 
+from sim.transforms import quat_to_mat
 from sim.validate.config import DgbParams
 from sim.validate.dgb import closed, dgb_drift, dgb_penetration_m
 from sim.validate.stages import GraspStages
+from sim.world.contacts import contacts_between
 from sim.world.scene import Scene
 
-__all__ = ["closing_score", "pregrasp_candidates", "rehearse", "rehearsed", "rehearsed_stages",
-           "squeeze_scaled"]
+__all__ = ["closing_score", "drift_corrected", "pregrasp_candidates", "rehearse", "rehearsed",
+           "rehearsed_stages", "squeeze_scaled"]
+
+#: damping (m²/rad² against the contacts' squared metres) of the least squares that turns the
+#: contacts' wanted motions into joint changes: keeps a joint the contacts barely see from a
+#: large change; the Shadow's fingertip Jacobians are ≈ (0.02–0.1 m)², so it is small beside them
+_LSQ_DAMPING = 1e-4
 
 
 def squeeze_scaled(stages: GraspStages, scales: Sequence[float]) -> list[GraspStages]:
@@ -88,17 +102,55 @@ def rehearse(scene: Scene, p: DgbParams, palm_world: tuple[np.ndarray, np.ndarra
     return int(np.argmin(scores)), scores
 
 
+def drift_corrected(scene: Scene, p: DgbParams, palm_world: tuple[np.ndarray, np.ndarray],
+                    stages: GraspStages) -> GraspStages:
+    """``stages`` with the squeeze moved to hold the object where the closing started (module
+    docstring): the benchmark's closing of ``stages`` leaves the free object moved by a rigid
+    motion (R, t); each hand–object contact point x is then wanted at R⁻¹(x − t), and the
+    squeeze changes by the damped least-squares joint change that moves the contact points so
+    (their Jacobians on the scene's hand joints). Pregrasp and grasp unchanged."""
+    m, d = scene.model, scene.data
+    scene.reset_with_grasp(*palm_world, stages.pregrasp)
+    pos0, quat0 = scene.object_pose()
+    closed(scene, p, palm_world, stages)
+    pos1, quat1 = scene.object_pose()
+    back = quat_to_mat(quat0) @ quat_to_mat(quat1).T   # the inverse rotation, world frame
+    touching = contacts_between(m, d, scene.hand_geom_mask, scene.obj_geom_mask)
+    if not len(touching.dist):
+        return stages
+    jac = np.zeros((3, m.nv))
+    rows, wanted = [], []
+    for point, body in zip(touching.pos, touching.body_a, strict=True):
+        mujoco.mj_jac(m, d, jac, None, point, int(body))
+        rows.append(jac[:, scene.hand_dadr].copy())
+        wanted.append(back @ (point - pos1) + pos0 - point)
+    a, b = np.vstack(rows), np.concatenate(wanted)
+    dq = np.linalg.solve(a.T @ a + _LSQ_DAMPING * np.eye(a.shape[1]), a.T @ b)
+    squeeze = stages.squeeze.copy()
+    squeeze[scene.hand_joint_kept] += dq
+    return dataclasses.replace(stages, squeeze=squeeze)
+
+
 def rehearsed_stages(scene: Scene, p: DgbParams, palm_world: tuple[np.ndarray, np.ndarray],
-                     pregrasps: Sequence[GraspStages], fallback_scales: Sequence[float]) -> GraspStages:
+                     pregrasps: Sequence[GraspStages], fallback_scales: Sequence[float],
+                     corrections: int = 0) -> GraspStages:
     """The stages to run (module docstring): of ``pregrasps`` (the same squeeze from different
     pregrasps, in order of preference) the calmest; where that closing scores 1 or more, the
-    calmest of it and of it with its squeeze at ``fallback_scales``."""
+    calmest of it and of it with its squeeze at ``fallback_scales``; then the calmest of that
+    and its ``corrections`` successive :func:`drift_corrected` squeezes."""
     best, scores = rehearse(scene, p, palm_world, pregrasps)
-    if scores[best] < 1.0 or not fallback_scales:
-        return pregrasps[best]
-    gentler = squeeze_scaled(pregrasps[best], fallback_scales)
-    calmest, gentle_scores = rehearse(scene, p, palm_world, gentler)
-    return gentler[calmest] if gentle_scores[calmest] < scores[best] else pregrasps[best]
+    chosen, score = pregrasps[best], float(scores[best])
+    if score >= 1.0 and fallback_scales:
+        gentler = squeeze_scaled(chosen, fallback_scales)
+        calmest, gentle_scores = rehearse(scene, p, palm_world, gentler)
+        if gentle_scores[calmest] < score:
+            chosen, score = gentler[calmest], float(gentle_scores[calmest])
+    current = chosen
+    for _ in range(corrections):   # each from the last: a correction can pass through a worse closing
+        current = drift_corrected(scene, p, palm_world, current)
+        if (corrected := closing_score(scene, p, palm_world, current)) < score:
+            chosen, score = current, corrected
+    return chosen
 
 
 def rehearsed(scene: Scene, p: DgbParams, palm_world: tuple[np.ndarray, np.ndarray],
@@ -109,4 +161,4 @@ def rehearsed(scene: Scene, p: DgbParams, palm_world: tuple[np.ndarray, np.ndarr
     if stages.made_by != "dexaug" or not p.rehearse_closing:
         return stages
     return rehearsed_stages(scene, p, palm_world, pregrasp_candidates(stages, p.rehearsal_pregrasp_shares),
-                            p.rehearsal_fallback_squeeze_scales)
+                            p.rehearsal_fallback_squeeze_scales, p.rehearsal_drift_corrections)
