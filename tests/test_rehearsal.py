@@ -178,25 +178,20 @@ def test_squeeze_scaled_moves_only_the_squeeze() -> None:
         assert s.made_by == "dexaug"
 
 
-@pytest.mark.parametrize("value", ["-1", "1.5", '"three"'])
-def test_bad_drift_correction_counts_are_refused_naming_the_field(tmp_path: Path, value: str) -> None:
-    text = VALIDATE_TOML.read_text().replace("rehearsal_drift_corrections = 3",
-                                             f"rehearsal_drift_corrections = {value}")
-    assert value in text
+@pytest.mark.parametrize(("key", "default", "value"), [
+    ("rehearsal_fallback_squeeze_scales", "[0.75]", "[0.0]"),
+    ("rehearsal_fallback_squeeze_scales", "[0.75]", "[0.75, 1.5]"),
+    ("rehearsal_fallback_squeeze_scales", "[0.75]", '["a"]'),
+    ("rehearsal_drift_corrections", "3", "-1"),
+    ("rehearsal_drift_corrections", "3", "1.5"),
+    ("rehearsal_drift_corrections", "3", '"three"'),
+])
+def test_bad_rehearsal_settings_are_refused_naming_the_field(tmp_path: Path, key: str, default: str,
+                                                              value: str) -> None:
+    text = VALIDATE_TOML.read_text().replace(f"{key} = {default}", f"{key} = {value}")
+    assert f"{key} = {value}" in text
     path = tmp_path / "validate.toml"
     path.write_text(text)
-    with pytest.raises(ConfigError, match=r"validate\.toml.*rehearsal_drift_corrections") as info:
-        ValidateConfig.load(path)
-    assert "\n" not in str(info.value)
-
-
-@pytest.mark.parametrize("value", ["[0.0]", "[0.75, 1.5]", '["a"]'])
-def test_bad_rehearsal_scales_are_refused_naming_the_field(tmp_path: Path, value: str) -> None:
-    text = VALIDATE_TOML.read_text().replace("rehearsal_fallback_squeeze_scales = [0.75]",
-                                             f"rehearsal_fallback_squeeze_scales = {value}")
-    assert value in text
-    path = tmp_path / "validate.toml"
-    path.write_text(text)
-    with pytest.raises(ConfigError, match=r"validate\.toml.*rehearsal_fallback_squeeze_scales") as info:
+    with pytest.raises(ConfigError, match=rf"validate\.toml.*{key}") as info:
         ValidateConfig.load(path)
     assert "\n" not in str(info.value)
