@@ -107,6 +107,7 @@ class DgbParams:
     rehearsal_pregrasp_shares: tuple[float, ...]
     rehearsal_fallback_squeeze_scales: tuple[float, ...]
     rehearsal_drift_corrections: int
+    rehearsal_rest_s: float
 
 
 def _contact(sec: Section) -> ContactParams:
@@ -128,7 +129,8 @@ def _load_dgb(sec: Section) -> DgbParams:
                         "force_per_kg", "push_time_s", "check_every_steps",
                         "max_displacement_m", "max_rotation_deg", "squeeze_convention",
                         "settle_free_modes", "rehearse_closing", "rehearsal_pregrasp_shares",
-                        "rehearsal_fallback_squeeze_scales", "rehearsal_drift_corrections"})
+                        "rehearsal_fallback_squeeze_scales", "rehearsal_drift_corrections",
+                        "rehearsal_rest_s"})
     shares = tuple(sec.floats("rehearsal_pregrasp_shares"))
     if not shares or any(not 0.0 <= s <= 1.0 for s in shares):
         raise sec.error("rehearsal_pregrasp_shares",
@@ -164,7 +166,8 @@ def _load_dgb(sec: Section) -> DgbParams:
         squeeze_convention=convention, settle_free_modes=sec.bool("settle_free_modes"),
         rehearse_closing=sec.bool("rehearse_closing"), rehearsal_pregrasp_shares=shares,
         rehearsal_fallback_squeeze_scales=scales,
-        rehearsal_drift_corrections=sec.int("rehearsal_drift_corrections", min=0))
+        rehearsal_drift_corrections=sec.int("rehearsal_drift_corrections", min=0),
+        rehearsal_rest_s=sec.float("rehearsal_rest_s", min=0.0, max=10.0))
 
 
 def _choice(sec: Section, key: str, allowed: tuple[str, ...]) -> str:
