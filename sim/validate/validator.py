@@ -30,7 +30,7 @@ from sim.metrics.holding import HoldLoads
 from sim.transforms import pose_inv, pose_mul, rotate
 from sim.validate.batched import BatchRunner, ProgramRunner, validate_batched
 from sim.validate.config import PROTOCOLS, ValidateConfig
-from sim.validate.dgb import run_dgb
+from sim.validate.dgb import dgb_penetration_m, run_dgb
 from sim.validate.effort import actuator_effort
 from sim.validate.lift_drop import Observer, lift_drop, unit_down
 from sim.validate.loads import hold_loads
@@ -240,8 +240,7 @@ class Validator:
         if q.ndim != 1:
             raise ValueError("one grasp at a time; use sim.validate.batch for many")
         self._place(scene := self.scene(protocol), grasp, q)
-        hand_hand = contacts_between(scene.model, scene.data, scene.hand_geom_mask, scene.hand_geom_mask)
-        return max(self._hand_object_contacts(scene).max_penetration_m, hand_hand.max_penetration_m)
+        return max(dgb_penetration_m(scene))   # (hand–object, hand–hand) of the placed grasp
 
     def validate(self, grasp: Grasp, protocol: str = "lift-drop", *,
                  squeeze_convention: str | None = None,
