@@ -4,8 +4,9 @@ The settled pregrasp and the grasp's own J1/J2 split, each at shares of its back
 the same squeeze: the one whose closing (object free, no push) moves the object least is kept;
 where that closing has already lost the object, gentler squeezes (``[dgb]
 rehearsal_fallback_squeeze_scales``) too; then the squeeze corrected for the drift its closing
-leaves (``rehearsal_drift_corrections``). Measured on five demos in the README ("Rehearsed
-closing", "Drift-corrected squeeze").
+leaves (``rehearsal_drift_corrections``); a closing already calm (``rehearsal_calm_score``) ends
+the rehearsal. Measured on five demos in the README ("Rehearsed closing", "Drift-corrected
+squeeze").
 """
 
 from __future__ import annotations
@@ -92,6 +93,10 @@ def test_the_drift_corrected_squeeze_holds_what_the_uncorrected_one_turns(shadow
     assert not turned.passed and np.degrees(turned.rotation_rad) > 15.0
     assert held.passed and np.degrees(held.rotation_rad) < 15.0
     np.testing.assert_array_equal(held.squeeze, chosen.squeeze)   # what the dataset stores
+    # a closing already as calm as [dgb] rehearsal_calm_score is not corrected
+    score = closing_score(scene, p, palm, uncorrected)
+    assert rehearsed_stages(scene, p, palm, [uncorrected], (), 3, calm_score=score) is uncorrected
+    assert rehearsed_stages(scene, p, palm, [uncorrected], (), 3, calm_score=0.99 * score) is not uncorrected
 
 
 @needs_ycb
@@ -135,6 +140,11 @@ def test_rehearse_keeps_the_calmest_closing_and_the_first_of_equals(shadow) -> N
     assert scores[best] < scores[0]
     again, tied = rehearse(scene, p, palm, [candidates[best], candidates[best]])
     assert again == 0 and tied[0] == tied[1]        # the simulation repeats exactly
+    # a candidate scoring calm_score or less ends the rehearsal: the later ones are not closed
+    first, stopped = rehearse(scene, p, palm, candidates, calm_score=float(scores[0]))
+    assert first == 0 and stopped[0] == scores[0] and np.isinf(stopped[1:]).all()
+    calm = 0.99 * float(scores[0])
+    assert rehearse(scene, p, palm, candidates, calm_score=calm)[0] == int(np.argmax(scores <= calm))
     # a pregrasp the benchmark would refuse for penetration never wins (here: any at all)
     refusing = dataclasses.replace(p, max_penetration_m=-1.0)
     assert closing_score(scene, refusing, palm, made) == np.inf
@@ -195,6 +205,8 @@ def test_squeeze_scaled_moves_only_the_squeeze() -> None:
     ("rehearsal_drift_corrections", "3", '"three"'),
     ("rehearsal_rest_s", "0.5", "-0.1"),
     ("rehearsal_rest_s", "0.5", '"half"'),
+    ("rehearsal_calm_score", "0.1", "-0.1"),
+    ("rehearsal_calm_score", "0.1", "1.5"),
 ])
 def test_bad_rehearsal_settings_are_refused_naming_the_field(tmp_path: Path, key: str, default: str,
                                                               value: str) -> None:

@@ -108,6 +108,7 @@ class DgbParams:
     rehearsal_fallback_squeeze_scales: tuple[float, ...]
     rehearsal_drift_corrections: int
     rehearsal_rest_s: float
+    rehearsal_calm_score: float
 
 
 def _contact(sec: Section) -> ContactParams:
@@ -130,7 +131,7 @@ def _load_dgb(sec: Section) -> DgbParams:
                         "max_displacement_m", "max_rotation_deg", "squeeze_convention",
                         "settle_free_modes", "rehearse_closing", "rehearsal_pregrasp_shares",
                         "rehearsal_fallback_squeeze_scales", "rehearsal_drift_corrections",
-                        "rehearsal_rest_s"})
+                        "rehearsal_rest_s", "rehearsal_calm_score"})
     shares = tuple(sec.floats("rehearsal_pregrasp_shares"))
     if not shares or any(not 0.0 <= s <= 1.0 for s in shares):
         raise sec.error("rehearsal_pregrasp_shares",
@@ -167,7 +168,8 @@ def _load_dgb(sec: Section) -> DgbParams:
         rehearse_closing=sec.bool("rehearse_closing"), rehearsal_pregrasp_shares=shares,
         rehearsal_fallback_squeeze_scales=scales,
         rehearsal_drift_corrections=sec.int("rehearsal_drift_corrections", min=0),
-        rehearsal_rest_s=sec.float("rehearsal_rest_s", min=0.0, max=10.0))
+        rehearsal_rest_s=sec.float("rehearsal_rest_s", min=0.0, max=10.0),
+        rehearsal_calm_score=sec.float("rehearsal_calm_score", min=0.0, max=1.0))
 
 
 def _choice(sec: Section, key: str, allowed: tuple[str, ...]) -> str:
