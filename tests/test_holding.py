@@ -156,6 +156,32 @@ def test_actuator_effort_is_linear_in_the_load_and_bounded_by_the_limits(shadow)
 
 @needs_menagerie
 @needs_ycb
+def test_fsg_ranks_by_effort_for_the_benchmark_and_by_epsilon_for_lift_drop(shadow) -> None:
+    """``[fsg] dgb_hold_oversample`` (2 by default) ranks the grasps made for ``--validate dgb``
+    by the effort of the benchmark's pushes; lift-drop keeps ``hold_oversample`` (1: the
+    paper's ε order). Measured: README "FSG ranks by the benchmark's loads"."""
+    from augment.autows.build import build_workspace
+    from augment.object_cloud import object_cloud
+    from dexaug.pipeline.run import generate_grasps
+    from sim.world.objects import load_object
+
+    params = load_fsg_params(shadow.config)
+    assert params.dgb_hold_oversample == 2.0 and params.hold_oversample == 1.0
+    obj = load_object("005_tomato_soup_can")
+    cloud, ws = object_cloud(obj), build_workspace(shadow)
+    for_dgb = generate_grasps(shadow, cloud, ws, n=6, seed=0, time_budget_s=30, hold_protocol="dgb")
+    e = np.array([g.actuator_effort for g in for_dgb.grasps])
+    assert len(e) == 6 and np.all(np.diff(e) >= 0), e             # least effort first
+    assert not np.isnan([g.grip_ratio for g in for_dgb.grasps]).any()
+    for_lift = generate_grasps(shadow, cloud, ws, n=6, seed=0, time_budget_s=30,
+                               hold_protocol="lift-drop")
+    eps = [g.epsilon for g in for_lift.grasps]
+    assert eps == sorted(eps, reverse=True)                       # the paper's order
+    assert all(np.isnan(g.grip_ratio) for g in for_lift.grasps)   # nothing ranked by grip
+
+
+@needs_menagerie
+@needs_ycb
 def test_an_object_too_heavy_for_the_actuators_gets_one_warning(shadow, caplog) -> None:
     """The same grasps of a soup can, scored as if their best grasp needed twice the force
     limits (the effort is linear in the load: a heavier can): none can hold it, so the pipeline

@@ -61,6 +61,7 @@ class FsgParams:
     dedup_quat: float = 5e-3
     dedup_joint_rad: float = 0.1
     hold_oversample: float = 1.0
+    dgb_hold_oversample: float = 1.0
     max_actuator_effort: float = math.inf
 
     def __post_init__(self) -> None:
@@ -68,8 +69,9 @@ class FsgParams:
                      "max_contacts_per_finger", "n_edges", "min_fingers"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
-        if not self.hold_oversample >= 1.0:
-            raise ValueError(f"hold_oversample must be >= 1, got {self.hold_oversample}")
+        for name in ("hold_oversample", "dgb_hold_oversample"):
+            if not getattr(self, name) >= 1.0:
+                raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         if not self.max_actuator_effort > 0:
             raise ValueError(f"max_actuator_effort must be > 0 (inf: off), got "
                              f"{self.max_actuator_effort}")

@@ -24,6 +24,7 @@ steps in this process, as it always has.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import time
@@ -75,8 +76,10 @@ def generate_grasps(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: Works
     scene, so no output fails validation for a penetration the simulator sees; with
     ``hold_protocol``, FSG ranks its grasps by the actuator effort and the grip they need to
     hold that protocol's loads (:class:`sim.validate.batch.SceneEffort`,
-    :func:`sim.validate.loads.hold_loads`; ``None``: by ε, as the paper). Every caller above
-    ``augment`` (CLI, dashboard, benchmarks) generates through here."""
+    :func:`sim.validate.loads.hold_loads`; ``None``: by ε, as the paper), over
+    ``[fsg] hold_oversample`` × n grasps found, or ``dgb_hold_oversample`` × n for the
+    benchmark's loads. Every caller above ``augment`` (CLI, dashboard, benchmarks) generates
+    through here."""
     exact = ScenePenetration.of(hand.name, obj.name) if link_penetration else None
     hold = effort = None
     asset = obj if isinstance(obj, ObjectAsset) else None
@@ -84,6 +87,9 @@ def generate_grasps(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: Works
         asset = asset or load_object(obj.name)
         hold = hold_loads(asset, hold_protocol)
         effort = SceneEffort(hand.name, obj.name, hold_protocol)
+    if hold_protocol == "dgb":
+        params = kwargs.get("params") or load_fsg_params(hand.config)
+        kwargs["params"] = dataclasses.replace(params, hold_oversample=params.dgb_hold_oversample)
     if workers > 1:
         persistent_pool(workers, preload=POOL_PRELOAD)
     res = generate(hand, obj, workspace, link_penetration=link_penetration,
