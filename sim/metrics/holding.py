@@ -27,9 +27,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linprog
 
-__all__ = ["HoldLoads", "finger_contacts", "min_actuator_effort", "min_grip_force_n"]
+from sim.metrics.lp import EqualityLP
+
+__all__ = ["HoldLoads", "finger_contacts", "min_actuator_effort", "min_actuator_efforts", "min_grip_force_n",
+           "min_grip_forces_n"]
 
 
 def finger_contacts(points_m: np.ndarray, normals_out: np.ndarray, finger: np.ndarray
@@ -82,44 +84,53 @@ def _contact_columns(points_m: np.ndarray, normals_in: np.ndarray, centre_m: np.
     return np.concatenate(columns, axis=1), edges.reshape(n * n_edges, 3), torsion
 
 
-def min_grip_force_n(points_m: np.ndarray, normals_in: np.ndarray, centre_m: np.ndarray,
-                     load: np.ndarray, mu: float, mu_torsion_m: float = 0.0, n_edges: int = 8
-                     ) -> float:
-    """Least total normal force (newtons) with which contacts at ``points_m`` (n, 3) with
-    inward unit ``normals_in`` (n, 3) hold the external wrench ``load`` (6,: force in newtons,
-    torque in N·m about ``centre_m``) on the object; ``inf`` when no forces inside the friction
-    cones (``mu``, torsional ``mu_torsion_m`` metres) can."""
+def min_grip_forces_n(points_m: np.ndarray, normals_in: np.ndarray, centre_m: np.ndarray,
+                      loads: np.ndarray, mu: float, mu_torsion_m: float = 0.0, n_edges: int = 8
+                      ) -> np.ndarray:
+    """Per external wrench of ``loads`` (k, 6: force in newtons, torque in N·m about
+    ``centre_m``) on the object, the least total normal force (newtons) with which contacts at
+    ``points_m`` (n, 3) with inward unit ``normals_in`` (n, 3) hold it: (k,), ``inf`` where no
+    forces inside the friction cones (``mu``, torsional ``mu_torsion_m`` metres) can. One
+    programme for all loads (:class:`sim.metrics.lp.EqualityLP`)."""
     points_m = np.asarray(points_m, dtype=float).reshape(-1, 3)
     normals_in = np.asarray(normals_in, dtype=float).reshape(-1, 3)
+    loads = np.asarray(loads, dtype=float).reshape(-1, 6)
     n = len(points_m)
     if n == 0:
-        return float("inf")
+        return np.full(len(loads), np.inf)
     a_eq, _, torsion = _contact_columns(points_m, normals_in, centre_m, mu, mu_torsion_m, n_edges)
     cost = np.zeros(a_eq.shape[1])
     cost[:n * n_edges] = 1.0
-    res = linprog(cost, A_ub=torsion, b_ub=None if torsion is None else np.zeros(n),
-                  A_eq=a_eq, b_eq=-np.asarray(load, dtype=float).reshape(6),
-                  bounds=(0, None), method="highs")
-    return float(res.fun) if res.status == 0 else float("inf")
+    return EqualityLP(cost, a_eq, torsion).minima(-loads)
 
 
-def min_actuator_effort(points_m: np.ndarray, normals_in: np.ndarray, centre_m: np.ndarray,
-                        load: np.ndarray, mu: float, effort_per_force: np.ndarray,
-                        effort_limit: np.ndarray, mu_torsion_m: float = 0.0, n_edges: int = 8
-                        ) -> float:
-    """Least worst actuator effort, as a fraction of its limit, with which the hand holds
-    ``load``: minimise t subject to the contact forces of :func:`min_grip_force_n` holding the
-    load and every actuator's force ``|u_j| ≤ t · effort_limit[j]``, where the actuator forces
-    are linear in the contact forces: ``u = effort_per_force @ f`` with ``effort_per_force``
-    (nu, n, 3) — per contact, the actuator forces that press the object with 1 N along each
-    axis (from the contact Jacobian and the actuator moment arms; the caller builds it). > 1:
-    the actuators cannot hold the load at these contacts however the forces are shared;
-    ``inf``: the friction cones cannot at all."""
+def min_grip_force_n(points_m: np.ndarray, normals_in: np.ndarray, centre_m: np.ndarray,
+                     load: np.ndarray, mu: float, mu_torsion_m: float = 0.0, n_edges: int = 8
+                     ) -> float:
+    """:func:`min_grip_forces_n` of the one wrench ``load`` (6,)."""
+    return float(min_grip_forces_n(points_m, normals_in, centre_m, load, mu, mu_torsion_m,
+                                   n_edges)[0])
+
+
+def min_actuator_efforts(points_m: np.ndarray, normals_in: np.ndarray, centre_m: np.ndarray,
+                         loads: np.ndarray, mu: float, effort_per_force: np.ndarray,
+                         effort_limit: np.ndarray, mu_torsion_m: float = 0.0, n_edges: int = 8
+                         ) -> np.ndarray:
+    """Per load of ``loads`` (k, 6), the least worst actuator effort, as a fraction of its
+    limit, with which the hand holds it: minimise t subject to the contact forces of
+    :func:`min_grip_forces_n` holding the load and every actuator's force
+    ``|u_j| ≤ t · effort_limit[j]``, where the actuator forces are linear in the contact forces:
+    ``u = effort_per_force @ f`` with ``effort_per_force`` (nu, n, 3) — per contact, the
+    actuator forces that press the object with 1 N along each axis (from the contact Jacobian
+    and the actuator moment arms; the caller builds it). (k,); > 1: the actuators cannot hold
+    the load at these contacts however the forces are shared; ``inf``: the friction cones cannot
+    at all."""
     points_m = np.asarray(points_m, dtype=float).reshape(-1, 3)
     normals_in = np.asarray(normals_in, dtype=float).reshape(-1, 3)
+    loads = np.asarray(loads, dtype=float).reshape(-1, 6)
     n = len(points_m)
     if n == 0:
-        return float("inf")
+        return np.full(len(loads), np.inf)
     a_eq, edges, torsion = _contact_columns(points_m, normals_in, centre_m, mu, mu_torsion_m,
                                             n_edges)
     per = np.asarray(effort_per_force, dtype=float).reshape(-1, n, 3)
@@ -136,13 +147,18 @@ def min_actuator_effort(points_m: np.ndarray, normals_in: np.ndarray, centre_m: 
     a_ub = [u_cols, np.hstack([-u_cols[:, :v], -limit[:, None]])]
     if torsion is not None:
         a_ub.append(np.hstack([torsion, np.zeros((n, 1))]))
-    a_ub_m = np.vstack(a_ub)
     cost = np.zeros(v + 1)
     cost[v] = 1.0
-    res = linprog(cost, A_ub=a_ub_m, b_ub=np.zeros(len(a_ub_m)),
-                  A_eq=np.hstack([a_eq, np.zeros((6, 1))]),
-                  b_eq=-np.asarray(load, dtype=float).reshape(6), bounds=(0, None), method="highs")
-    return float(res.fun) if res.status == 0 else float("inf")
+    return EqualityLP(cost, np.hstack([a_eq, np.zeros((6, 1))]), np.vstack(a_ub)).minima(-loads)
+
+
+def min_actuator_effort(points_m: np.ndarray, normals_in: np.ndarray, centre_m: np.ndarray,
+                        load: np.ndarray, mu: float, effort_per_force: np.ndarray,
+                        effort_limit: np.ndarray, mu_torsion_m: float = 0.0, n_edges: int = 8
+                        ) -> float:
+    """:func:`min_actuator_efforts` of the one wrench ``load`` (6,)."""
+    return float(min_actuator_efforts(points_m, normals_in, centre_m, load, mu, effort_per_force,
+                                      effort_limit, mu_torsion_m, n_edges)[0])
 
 
 @dataclass(frozen=True)
@@ -170,11 +186,9 @@ class HoldLoads:
         contacts at ``points_m`` (M, 3) with outward ``normals_out`` and finger indices
         ``finger`` (M,) — one soft contact per finger (:func:`finger_contacts`)."""
         centres, normals_in = finger_contacts(points_m, normals_out, finger)
-        worst = 0.0
-        for load in np.asarray(self.loads, dtype=float).reshape(-1, 6):
-            scale_n = max(float(np.linalg.norm(load[:3])), 1e-9)
-            lam = min_grip_force_n(centres, normals_in, self.com_m, load, self.mu, self.mu_torsion_m)
-            if not np.isfinite(lam):
-                return float("inf")
-            worst = max(worst, lam / scale_n)
-        return worst
+        loads = np.asarray(self.loads, dtype=float).reshape(-1, 6)
+        lam = min_grip_forces_n(centres, normals_in, self.com_m, loads, self.mu, self.mu_torsion_m)
+        if not np.all(np.isfinite(lam)):
+            return float("inf")
+        scale_n = np.maximum(np.linalg.norm(loads[:, :3], axis=1), 1e-9)
+        return float(np.max(lam / scale_n, initial=0.0))

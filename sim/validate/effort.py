@@ -1,6 +1,6 @@
 """Can the hand's actuators hold the load at a grasp's contacts? The least worst actuator effort.
 
-:func:`sim.metrics.holding.min_actuator_effort` is a linear programme over the contact forces;
+:func:`sim.metrics.holding.min_actuator_efforts` is a linear programme over the contact forces;
 this builds its actuator model from the validator's scene at the placed grasp: one contact per
 hand body near the object (its closest point and normal, as the squeeze targets use), the
 contact Jacobians over the finger joints, and the actuators' moment arms M (``τ = Mᵀ u``), so
@@ -17,7 +17,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from sim.metrics.holding import HoldLoads, min_actuator_effort
+from sim.metrics.holding import HoldLoads, min_actuator_efforts
 from sim.world.contacts import Contacts
 from sim.world.scene import Scene
 
@@ -73,11 +73,6 @@ def actuator_effort(scene: Scene, near: Contacts, finger_mask: np.ndarray, hold:
         per[:, c, :] = to_effort @ (jacp[:, scene.hand_dadr] * finger_mask).T
     limit = servo_force_limits(scene)
     com = d.xipos[scene.obj_body]
-    worst = 0.0
-    for load in np.asarray(hold.loads, dtype=float).reshape(-1, 6):
-        t = min_actuator_effort(points, near.normal[idx], com, load, hold.mu, per, limit,
-                                hold.mu_torsion_m)
-        if not np.isfinite(t):
-            return float("inf")
-        worst = max(worst, t)
-    return worst
+    efforts = min_actuator_efforts(points, near.normal[idx], com, hold.loads, hold.mu, per, limit,
+                                   hold.mu_torsion_m)
+    return float(np.max(efforts, initial=0.0))

@@ -54,7 +54,7 @@ import mujoco
 import numpy as np
 
 from sim.hand.model import Hand
-from sim.metrics.holding import HoldLoads, min_grip_force_n
+from sim.metrics.holding import HoldLoads, min_grip_forces_n
 from sim.validate.config import GRAVITY_MPS2, CommonParams
 from sim.validate.contact_forces import balanced_normal_forces
 from sim.validate.effort import closest_per_body, finger_moment_arms, servo_force_limits
@@ -177,8 +177,8 @@ def _least_grip_per_load(points: np.ndarray, normals_in: np.ndarray,
     """Per load of ``loads``, the least total normal force (newtons; inf: none holds it) with
     which contacts at ``points`` pressing along ``normals_in`` hold it
     (:func:`sim.metrics.holding.min_grip_force_n`, with ``loads``' friction)."""
-    return [min_grip_force_n(points, normals_in, loads.com_m, load, loads.mu, loads.mu_torsion_m)
-            for load in np.asarray(loads.loads, dtype=float).reshape(-1, 6)]
+    return min_grip_forces_n(points, normals_in, loads.com_m, loads.loads, loads.mu,
+                             loads.mu_torsion_m).tolist()
 
 
 def holds_every_load(near: Contacts, loads: HoldLoads) -> bool:
