@@ -14,8 +14,10 @@ import mujoco
 import numpy as np
 import pytest
 
+from sim.transforms import quat_to_mat
 from sim.validate.config import ValidateConfig
-from sim.validate.diagnose_dgb import diagnose_dgb, held_closing, summarise_dgb
+from sim.validate.dgb import DGB_DIRECTIONS
+from sim.validate.diagnose_dgb import diagnose_dgb, held_closing, replay_push, summarise_dgb
 from sim.validate.validator import Validator
 from sim.world.objects import load_object
 from tests.conftest import needs_menagerie, needs_ycb, without_drift_correction, without_settled_modes
@@ -69,3 +71,25 @@ def test_a_grasp_that_fails_with_a_reconfiguring_finger_is_diagnosed_so(bowl_val
     assert summary["failing"]["grasps"] == summary["passing"]["grasps"] == 1
     assert summary["verdicts"] == {"slipped": 1} and summary["failing_push"] == {"-x": 1}
     json.dumps({"summary": summary, "grasp": bad.findings})     # the CLI writes these as JSON
+
+
+def test_the_replayed_push_is_the_benchmarks_own(bowl_validators) -> None:
+    """replay_push runs the validator's push: it ends where the benchmark's phase ended (same
+    drift, bit for bit), on the failing push outside the limits and on a passing one inside;
+    its direction is the world push seen from frame_palm; the grip is read from the closing."""
+    for settle, v in bowl_validators.items():
+        result = v.validate(BOWL_GRASP, "dgb")
+        stages = v.stages(BOWL_GRASP, sized_for="dgb")
+        p, scene, palm = v.config.dgb, v.scene("dgb"), v.palm_world(BOWL_GRASP)
+        for name, phase in result.phases.items():
+            push = replay_push(scene, p, palm, stages, name)
+            assert push.drift_m_rad == (phase.displacement_m, phase.rotation_rad)
+            inside = (push.drift_m_rad[0] < p.max_displacement_m
+                      and push.drift_m_rad[1] < p.max_rotation_rad)
+            assert inside == phase.passed
+            world = quat_to_mat(palm[1]) @ push.direction_palm
+            assert np.allclose(world, DGB_DIRECTIONS[name])
+            assert push.grip_start_n > 0.1 and push.grip_end_n >= 0.0
+        hardest = diagnose_dgb(v, BOWL_GRASP).findings["hardest_push"]
+        assert hardest["direction"] == ("-x" if not settle else max(
+            result.phases, key=lambda k: result.phases[k].rotation_rad))

@@ -99,6 +99,12 @@ def _dgb_summary_table(name: str, summary: dict[str, Any]) -> Table:
               _num(f["pairs_reconfigured_median"], ".1f"), _num(p["pairs_reconfigured_median"], ".1f"))
     t.add_row("planned contacts unloaded at the end, median",
               _num(f["planned_unloaded_median"], ".1f"), _num(p["planned_unloaded_median"], ".1f"))
+    t.add_row("hardest push: grip left at its end (share), median",
+              _num(f["push_grip_kept_median"], ".2f"), _num(p["push_grip_kept_median"], ".2f"))
+    t.add_row("hardest push: largest J1/J2 split move (°), median",
+              _num(f["push_split_moved_deg_median"], ".1f"), _num(p["push_split_moved_deg_median"], ".1f"))
+    t.add_row("hardest push: along palm axis (count)", Text(json.dumps(f["hardest_push_palm_axis"])),
+              Text(json.dumps(p["hardest_push_palm_axis"])))
     return t
 
 

@@ -15,7 +15,11 @@ the validator's own stages (so the same verdict) and adds:
   far the split J1 − J2 moved in the held closing: a pressed finger that reconfigures rolls its
   fingertip over the object;
 - the planned contacts (hand bodies within ``[dgb] contact_search_m`` at the grasp stage) that
-  carry no force at the end of the held closing.
+  carry no force at the end of the held closing;
+- the **hardest push** replayed (:func:`replay_push`: the first failing one, else the one that
+  turned the object most): its direction in frame_palm, the hand's total normal force on the
+  object when it starts and at its last check inside the limits, and how far each tendon-shared
+  pair's split moved in it.
 
 Units: metres, newtons, N·m, radians (degrees only in the summary's printed drift).
 """
@@ -29,14 +33,17 @@ import mujoco
 import numpy as np
 
 from sim.grasp import Grasp
-from sim.validate.dgb import closing_drift
+from sim.transforms import quat_to_mat
+from sim.validate.config import DgbParams
+from sim.validate.dgb import DGB_DIRECTIONS, closed, closing_drift, dgb_drift
 from sim.validate.effort import closest_per_body
 from sim.validate.stages import GraspStages
 from sim.validate.validator import Validator
+from sim.world.contacts import contacts_between
 from sim.world.scene import HAND_PREFIX, Scene
 
-__all__ = ["IMBALANCE_LEVER_M", "DgbDiagnosis", "diagnose_dgb", "hand_wrench", "held_closing",
-           "held_steps", "summarise_dgb"]
+__all__ = ["IMBALANCE_LEVER_M", "DgbDiagnosis", "PushReplay", "diagnose_dgb", "hand_wrench", "held_closing",
+           "held_steps", "replay_push", "summarise_dgb"]
 
 #: lever (metres) that turns the held net torque into newtons for ``imbalance_n``
 IMBALANCE_LEVER_M = 0.02
@@ -138,6 +145,59 @@ class DgbDiagnosis:
     findings: dict[str, Any] = field(default_factory=dict)
 
 
+@dataclass(frozen=True)
+class PushReplay:
+    """One push of the benchmark replayed from its closing: its direction in frame_palm (unit),
+    the hand's total normal force on the object (N) when the push starts and at the last check
+    the object was still inside the limits, each tendon-shared pair's split J1 − J2 moved
+    (radians) from the push's start to where it ended (its first failing check, or its end),
+    and the object's drift there (metres, radians; the benchmark's phase result)."""
+
+    direction_palm: np.ndarray
+    grip_start_n: float
+    grip_end_n: float
+    split_moved_rad: dict[str, float]
+    drift_m_rad: tuple[float, float]
+
+
+def _grip_n(scene: Scene) -> float:
+    con = contacts_between(scene.model, scene.data, scene.hand_geom_mask, scene.obj_geom_mask,
+                           with_force=True)
+    return float(con.force_n.sum())
+
+
+def replay_push(scene: Scene, p: DgbParams, palm_world: tuple[np.ndarray, np.ndarray],
+                stages: GraspStages, direction: str) -> PushReplay:
+    """The benchmark's push ``direction`` (a key of :data:`sim.validate.dgb.DGB_DIRECTIONS`)
+    after its closing of ``stages``, checked as it checks (every ``check_every_steps`` steps
+    against its limits from the object's pose at the pregrasp), with the grip and the splits
+    read along the way. Why: a pinch's servos may hold the sum of a tendon-shared pair while
+    the push turns the pair to its stop and the fingertip backs off the object, which the
+    closing alone does not show (README "Grasps that hold", the dice)."""
+    m, d = scene.model, scene.data
+    scene.reset_with_grasp(*palm_world, stages.pregrasp)
+    pos0, quat0 = scene.object_pose()
+    closed(scene, p, palm_world, stages)
+    mujoco.mj_forward(m, d)
+    start, grip0 = _splits(scene), _grip_n(scene)
+    grip = grip0
+    push = np.asarray(DGB_DIRECTIONS[direction], float)
+    d.xfrc_applied[scene.obj_body, :3] = p.force_per_kg * scene.obj_mass_kg * push
+    checks = max(round(p.push_time_s / m.opt.timestep) // p.check_every_steps, 1)
+    disp = rot = 0.0
+    for _ in range(checks):
+        mujoco.mj_step(m, d, nstep=p.check_every_steps)
+        disp, rot = dgb_drift(pos0, quat0, *scene.object_pose())
+        if not (disp < p.max_displacement_m and rot < p.max_rotation_rad):
+            break
+        mujoco.mj_forward(m, d)
+        grip = _grip_n(scene)
+    d.xfrc_applied[scene.obj_body] = 0.0
+    end = _splits(scene)
+    return PushReplay(quat_to_mat(palm_world[1]).T @ push, grip0, grip,
+                      {k: end[k] - start[k] for k in start}, (disp, rot))
+
+
 def _planned_bodies(v: Validator, grasp: Grasp, stages: GraspStages) -> set[str]:
     """Hand bodies within ``[dgb] contact_search_m`` of the object at the grasp stage."""
     scene = v.scene("lift-drop")
@@ -158,6 +218,9 @@ def diagnose_dgb(v: Validator, grasp: Grasp) -> DgbDiagnosis:
     planned = _planned_bodies(v, grasp, stages)
     failed = [k for k, ph in result.phases.items() if not ph.passed]
     moved = {k: end - start for k, (start, end) in held.split_rad.items()}
+    hardest = failed[0] if failed else max(result.phases, key=lambda k: result.phases[k].rotation_rad,
+                                           default=None)
+    push = None if hardest is None else replay_push(scene, p, v.palm_world(grasp), stages, hardest)
     return DgbDiagnosis(result.passed, {
         "verdict": "passed" if result.passed else str(result.failure),
         "failing_push": failed[0] if failed else None,
@@ -170,6 +233,10 @@ def diagnose_dgb(v: Validator, grasp: Grasp) -> DgbDiagnosis:
         "pairs_reconfigured": sorted(k for k, x in moved.items() if abs(x) > RECONFIGURED_RAD),
         "planned_contacts": sorted(planned),
         "planned_contacts_unloaded": sorted(planned - held.pressing),
+        "hardest_push": None if push is None else {
+            "direction": hardest, "direction_palm": push.direction_palm.tolist(),
+            "grip_start_n": push.grip_start_n, "grip_end_n": push.grip_end_n,
+            "split_moved_rad": push.split_moved_rad},
     })
 
 
@@ -177,15 +244,24 @@ def _median(values: list[float]) -> float:
     return float(np.median(values)) if values else float("nan")
 
 
+def _palm_axes(pushes: list[dict[str, Any]]) -> dict[str, int]:
+    """How many pushes run mostly along each frame_palm axis (their largest component)."""
+    axes = ["xyz"[int(np.argmax(np.abs(x["direction_palm"])))] for x in pushes]
+    return {a: axes.count(a) for a in sorted(set(axes))}
+
+
 def summarise_dgb(diagnoses: list[DgbDiagnosis]) -> dict[str, Any]:
     """Per verdict group ("failing", "passing"): medians of the drift after each closing stage
     (mm, degrees), the held imbalance (N), the reconfigured pairs and the unloaded planned
-    contacts per grasp; and, over the failing grasps, the verdicts and failing push
-    directions."""
+    contacts per grasp, and of the hardest push (the first failing one, else the one that
+    turned the object most): the share of the grip left at its end, the largest split moved
+    (degrees), and the frame_palm axes it ran along; and, over the failing grasps, the verdicts
+    and failing push directions."""
     out: dict[str, Any] = {"grasps": len(diagnoses)}
     for label, group in (("failing", [g for g in diagnoses if not g.passed]),
                          ("passing", [g for g in diagnoses if g.passed])):
         f = [g.findings for g in group]
+        hardest = [x["hardest_push"] for x in f if x.get("hardest_push")]
         out[label] = {
             "grasps": len(group),
             "squeeze_drift_mm_median": _median([1e3 * x["drift_after_squeeze_m_rad"][0] for x in f]),
@@ -196,6 +272,12 @@ def summarise_dgb(diagnoses: list[DgbDiagnosis]) -> dict[str, Any]:
             "held_imbalance_median_n": _median([x["held_imbalance_mean_n"] for x in f]),
             "pairs_reconfigured_median": _median([len(x["pairs_reconfigured"]) for x in f]),
             "planned_unloaded_median": _median([len(x["planned_contacts_unloaded"]) for x in f]),
+            "push_grip_kept_median": _median([h["grip_end_n"] / h["grip_start_n"] for h in hardest
+                                              if h["grip_start_n"] > 0]),
+            "push_split_moved_deg_median": _median([
+                float(np.degrees(max(map(abs, h["split_moved_rad"].values()), default=0.0)))
+                for h in hardest]),
+            "hardest_push_palm_axis": _palm_axes(hardest),
         }
     failing = [g.findings for g in diagnoses if not g.passed]
     out["verdicts"] = {k: sum(x["verdict"] == k for x in failing)
