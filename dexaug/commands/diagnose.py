@@ -35,7 +35,7 @@ def _diagnose_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--protocol", choices=("lift-drop", "dgb"), default="lift-drop",
                    help="replay under lift-drop (slip, friction, efforts) or the benchmark (closing "
                         "drift, the held closing's imbalance, reconfigured J1/J2 pairs, unloaded "
-                        "contacts); default %(default)s")
+                        "contacts, the hardest push); default %(default)s")
     p.add_argument("--json", type=Path, help="write every grasp's findings and the summary as JSON")
 
 
@@ -170,7 +170,9 @@ def diagnose(args: argparse.Namespace, console: Console) -> int:
     dgb (--protocol dgb): the free object's drift after the closing's grasp and squeeze stages,
     the first failing push, and the same closing on the held object: the hand's net force and
     torque on it, which tendon-shared J1/J2 pairs reconfigure, which planned contacts end up
-    unloaded. The replay is the validator's own run, so the verdicts are the dataset's.
+    unloaded; and the hardest push replayed (the first failing one, else the one that turned the
+    object most): its palm-frame axis, the grip left at its end, the J1/J2 splits it moved. The
+    replay is the validator's own run, so the verdicts are the dataset's.
     """
     return diagnose_dataset(args.dataset, console, object_name=args.object, n=args.n,
                             passing=args.passing, json_path=args.json, protocol=args.protocol)
