@@ -39,7 +39,8 @@ from sim.validate.stages import GraspStages
 from sim.world.contacts import contacts_between
 from sim.world.scene import Scene
 
-__all__ = ["DGB_DIRECTIONS", "close", "closed", "closing_drift", "dgb_drift", "dgb_penetration_m", "run_dgb"]
+__all__ = ["DGB_DIRECTIONS", "close", "closed", "closing_drift", "dgb_drift", "dgb_penetration_m", "push",
+           "run_dgb"]
 
 DGB_DIRECTIONS = {"-x": (-1, 0, 0), "+x": (1, 0, 0), "-y": (0, -1, 0), "+y": (0, 1, 0),
                   "-z": (0, 0, -1), "+z": (0, 0, 1)}
@@ -130,6 +131,30 @@ def closing_drift(scene: Scene, p: DgbParams, palm_world: tuple[np.ndarray, np.n
     return out
 
 
+def push(scene: Scene, p: DgbParams, pose0: tuple[np.ndarray, np.ndarray], direction: str,
+         after_check: Callable[[], None] | None = None) -> tuple[bool, float, float]:
+    """The benchmark's push ``direction`` (a key of :data:`DGB_DIRECTIONS`) from the current
+    state: ``force_per_kg``·m newtons at the centre of mass for ``push_time_s``, the drift from
+    ``pose0`` (the object's world position and wxyz at the pregrasp) checked every
+    ``check_every_steps`` steps. Returns (inside the limits, metres, radians) at the first
+    failing check or the last one; ``after_check`` is called after every check still inside the
+    limits (a diagnosis reads the state there). The force stays applied."""
+    m, d = scene.model, scene.data
+    force = p.force_per_kg * scene.obj_mass_kg
+    d.xfrc_applied[scene.obj_body, :3] = force * np.asarray(DGB_DIRECTIONS[direction], float)
+    checks = max(round(p.push_time_s / m.opt.timestep) // p.check_every_steps, 1)
+    ok, disp, rot = True, 0.0, 0.0
+    for _ in range(checks):
+        mujoco.mj_step(m, d, nstep=p.check_every_steps)
+        disp, rot = dgb_drift(*pose0, *scene.object_pose())
+        ok = disp < p.max_displacement_m and rot < p.max_rotation_rad
+        if not ok:
+            break
+        if after_check is not None:
+            after_check()
+    return ok, disp, rot
+
+
 def run_dgb(scene: Scene, p: DgbParams, palm_world: tuple[np.ndarray, np.ndarray],
             stages: GraspStages, result: ValidationResult,
             after_first_close: Callable[[], None] | None = None) -> None:
@@ -137,32 +162,23 @@ def run_dgb(scene: Scene, p: DgbParams, palm_world: tuple[np.ndarray, np.ndarray
     wxyz) with ``stages``; fills ``result`` (penetration, one phase per tested direction, the
     last measured drift, the verdict). ``after_first_close`` is called once, closed, before the
     first push (to measure contacts)."""
-    m, d = scene.model, scene.data
     scene.reset_with_grasp(*palm_world, stages.pregrasp)
     ho, hh = dgb_penetration_m(scene)
     result.penetration_m = max(ho, hh)   # as every protocol reports it: into the object or itself
     if ho > p.max_penetration_m or hh > p.max_penetration_m:
         result.failure = Failure.PENETRATION
         return
-    pos0, quat0 = scene.object_pose()
-    force = p.force_per_kg * scene.obj_mass_kg
-    checks = max(round(p.push_time_s / m.opt.timestep) // p.check_every_steps, 1)
+    pose0 = scene.object_pose()
     ok, disp, rot = True, 0.0, 0.0
-    for i, (name, direction) in enumerate(DGB_DIRECTIONS.items()):
+    for i, name in enumerate(DGB_DIRECTIONS):
         closed(scene, p, palm_world, stages)
         if i == 0 and after_first_close is not None:
             after_first_close()
-        d.xfrc_applied[scene.obj_body, :3] = force * np.asarray(direction, float)
-        for _ in range(checks):
-            mujoco.mj_step(m, d, nstep=p.check_every_steps)
-            disp, rot = dgb_drift(pos0, quat0, *scene.object_pose())
-            ok = disp < p.max_displacement_m and rot < p.max_rotation_rad
-            if not ok:
-                break
+        ok, disp, rot = push(scene, p, pose0, name)
         result.phases[name] = PhaseResult(ok, disp, rot)
         if not ok:
             break
-    d.xfrc_applied[scene.obj_body] = 0.0
+    scene.data.xfrc_applied[scene.obj_body] = 0.0
     result.displacement_m, result.rotation_rad = disp, rot
     result.passed = ok
     result.failure = None if ok else Failure.SLIPPED

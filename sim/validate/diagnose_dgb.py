@@ -35,7 +35,7 @@ import numpy as np
 from sim.grasp import Grasp
 from sim.transforms import quat_to_mat
 from sim.validate.config import DgbParams
-from sim.validate.dgb import DGB_DIRECTIONS, closed, closing_drift, dgb_drift
+from sim.validate.dgb import DGB_DIRECTIONS, closed, closing_drift, push
 from sim.validate.effort import closest_per_body
 from sim.validate.stages import GraspStages
 from sim.validate.validator import Validator
@@ -176,26 +176,20 @@ def replay_push(scene: Scene, p: DgbParams, palm_world: tuple[np.ndarray, np.nda
     closing alone does not show (README "Grasps that hold", the dice)."""
     m, d = scene.model, scene.data
     scene.reset_with_grasp(*palm_world, stages.pregrasp)
-    pos0, quat0 = scene.object_pose()
+    pose0 = scene.object_pose()
     closed(scene, p, palm_world, stages)
     mujoco.mj_forward(m, d)
-    start, grip0 = _splits(scene), _grip_n(scene)
-    grip = grip0
-    push = np.asarray(DGB_DIRECTIONS[direction], float)
-    d.xfrc_applied[scene.obj_body, :3] = p.force_per_kg * scene.obj_mass_kg * push
-    checks = max(round(p.push_time_s / m.opt.timestep) // p.check_every_steps, 1)
-    disp = rot = 0.0
-    for _ in range(checks):
-        mujoco.mj_step(m, d, nstep=p.check_every_steps)
-        disp, rot = dgb_drift(pos0, quat0, *scene.object_pose())
-        if not (disp < p.max_displacement_m and rot < p.max_rotation_rad):
-            break
+    start, grips = _splits(scene), [_grip_n(scene)]
+
+    def read_grip() -> None:
         mujoco.mj_forward(m, d)
-        grip = _grip_n(scene)
+        grips.append(_grip_n(scene))
+
+    _, disp, rot = push(scene, p, pose0, direction, read_grip)
     d.xfrc_applied[scene.obj_body] = 0.0
     end = _splits(scene)
-    return PushReplay(quat_to_mat(palm_world[1]).T @ push, grip0, grip,
-                      {k: end[k] - start[k] for k in start}, (disp, rot))
+    return PushReplay(quat_to_mat(palm_world[1]).T @ np.asarray(DGB_DIRECTIONS[direction], float),
+                      grips[0], grips[-1], {k: end[k] - start[k] for k in start}, (disp, rot))
 
 
 def _planned_bodies(v: Validator, grasp: Grasp, stages: GraspStages) -> set[str]:
