@@ -28,7 +28,7 @@ def test_help_lists_every_subcommand(capsys) -> None:
 def test_assets_reports_broken_objects(capsys) -> None:
     assert main(["assets", "--broken"]) == 0
     out = capsys.readouterr().out
-    assert "061_foam_brick" in out and "broken" in out
+    assert "073_a_lego_duplo" in out and "broken" in out
     assert "shadow_right" in out
 
 

@@ -6,8 +6,15 @@ that is absent, paths are relative to the file, and a few do not load at all. Th
 rewritten here, before MuJoCo sees it: the worldbody is wrapped into the object body layout of
 :mod:`sim.world.object_spec`, file paths become absolute, missing textures are dropped (with
 their materials) and reported as warnings, and line numbers of the original file are kept so
-MuJoCo's messages still point into it. Every other defect is an :class:`ObjectLoadError` naming
-the file; :func:`diagnose_xml` adds hints to a file that MuJoCo cannot compile.
+MuJoCo's messages still point into it.
+
+Two packaging slips that have exactly one reading are repaired too, each with a warning that
+names it (:func:`_drop_classes_inside_defaults`, :func:`_name_the_unnamed_mesh`): a ``class=``
+on an element inside a ``<default>`` (MuJoCo's schema has no such attribute there; 065_c and
+073_b…g of the shared YCB set) and a geom asking for a mesh name that no mesh has while exactly
+one mesh has no name and no user (061). Anything that needs a guess — a mesh file that is not
+there, geoms naming another object's assets — stays an :class:`ObjectLoadError` naming the
+file; :func:`diagnose_xml` adds hints to a file that MuJoCo cannot compile.
 """
 
 from __future__ import annotations
@@ -63,13 +70,52 @@ def _default_name(element: ET.Element, attr: str = "file") -> str:
     return element.get("name") or Path(element.get(attr, "")).stem
 
 
+def _drop_classes_inside_defaults(root: ET.Element) -> list[str]:
+    """Remove ``class`` attributes from the elements inside ``<default>`` blocks; one warning per
+    class block. MuJoCo rejects the file with them ("unrecognized attribute: 'class'"): a
+    default's settings belong to the block they sit in, so the attribute can only restate that
+    block or name another one, and it is dropped. Where it named another block (065_c's visual
+    class names the collision one), the settings it may have meant to borrow are ones the block
+    sets itself for the physics (contype/conaffinity, mass): what could differ is a visual
+    geom's group and colour."""
+    warnings = []
+    for block in root.iter("default"):
+        dropped = []
+        for element in block:
+            if isinstance(element.tag, str) and element.tag != "default" and "class" in element.attrib:
+                dropped.append(f"<{element.tag} class={element.attrib.pop('class')!r}>")
+        if dropped:
+            warnings.append(f"default class {block.get('class', 'main')!r}: removed "
+                            f"{', '.join(dropped)} (an element inside <default> takes its block's "
+                            "class; MuJoCo rejects the attribute there)")
+    return warnings
+
+
+def _name_the_unnamed_mesh(root: ET.Element) -> list[str]:
+    """Give the one mesh without a ``name`` and without a user the one mesh name that geoms ask
+    for and no mesh has (061: ``<mesh file="textured.obj"/>``, which MuJoCo calls "textured",
+    and ``<geom mesh="foam_brick">``); a warning says so. Anything less clear-cut is left for
+    MuJoCo to reject."""
+    meshes = [m for asset in root.iter("asset") for m in asset if m.tag == "mesh"]
+    defined = {_default_name(m) for m in meshes}
+    wanted = {g.get("mesh") for g in root.iter("geom") if g.get("mesh")}
+    missing = sorted(wanted - defined)
+    unnamed = [m for m in meshes if "name" not in m.attrib and _default_name(m) not in wanted]
+    if len(missing) != 1 or len(unnamed) != 1:
+        return []
+    unnamed[0].set("name", missing[0])
+    return [f"mesh file {Path(unnamed[0].get('file', '')).name!r} has no name and no geom uses "
+            f"it, and geoms ask for mesh {missing[0]!r}, which no mesh is called: named it so"]
+
+
 def prepare_ycb_xml(path: Path) -> tuple[str, list[str]]:
     """The MJCF text of a YCB-style object file made loadable from anywhere, and its warnings.
 
     Geoms (and everything else) in ``<worldbody>`` are wrapped into ``<body name="object">`` with
     a free joint; mesh, texture and other file paths become absolute; a texture whose file is
-    absent is dropped with the materials using it (their geoms get a plain ``rgba``). Contact
-    parameters are set later, on the spec. Line numbers of the original file are preserved.
+    absent is dropped with the materials using it (their geoms get a plain ``rgba``); the two
+    one-reading slips of the module docstring are repaired. Contact parameters are set later,
+    on the spec. Line numbers of the original file are preserved.
     Raises ``ObjectLoadError`` for XML that is not well-formed or has no ``<worldbody>``.
     """
     try:
@@ -96,7 +142,7 @@ def prepare_ycb_xml(path: Path) -> tuple[str, list[str]]:
         compiler.attrib.pop("assetdir", None)
         compiler.set("strippath", "false")
 
-    warnings: list[str] = []
+    warnings = _drop_classes_inside_defaults(root) + _name_the_unnamed_mesh(root)
     dropped_textures: set[str] = set()
     missing_files: list[str] = []
     for asset in root.iter("asset"):
