@@ -15,8 +15,10 @@ from typing import Any
 
 import numpy as np
 
+from sim.grasp import Grasp
+
 __all__ = ["STR_COLUMNS", "ObjectTable", "brief", "concat_tables", "grasp_count",
-           "grasp_stage_poses", "select_rows", "with_rejected"]
+           "grasp_stage_poses", "grasps_of", "select_rows", "with_rejected"]
 
 #: per-grasp columns stored as strings
 STR_COLUMNS = ("failure", "demo_id", "stages_made_by", "closing")
@@ -125,3 +127,11 @@ def grasp_stage_poses(t: ObjectTable) -> np.ndarray:
     hand = np.asarray(t.columns["hand_pose"], dtype=float)
     touch = np.asarray(t.columns.get("touch_pose", np.full_like(hand, np.nan)), dtype=float)
     return np.where(np.isfinite(touch).all(axis=1)[:, None], touch, hand)
+
+
+def grasps_of(t: ObjectTable | None, limit: int | None = None) -> list[Grasp]:
+    """The first ``limit`` (default all) rows of ``t`` as :class:`sim.grasp.Grasp` (palm pose and
+    joints; stages are left for the validator to derive), none for a missing table."""
+    n = 0 if t is None else len(t) if limit is None else min(limit, len(t))
+    return [Grasp.from_arrays(t["palm_pose"][i][:3], t["palm_pose"][i][3:], t["hand_pose"][i])
+            for i in range(n)]

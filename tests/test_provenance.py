@@ -18,6 +18,7 @@ import pytest
 
 from augment import dataset
 from augment.fsg.result import FsgGrasp
+from augment.grasp_table import grasps_of, with_rejected
 from sim.grasp import Grasp
 from sim.paths import REPO_ROOT, YCB_ENV
 from sim.provenance import asset_hashes, file_sha256
@@ -232,6 +233,17 @@ def test_a_printed_dataset_is_short_and_says_what_it_holds(tmp_path: Path) -> No
     assert text.endswith("… and 19 more objects")
     table = repr(loaded["big"])
     assert len(table) < 1000 and "\n" not in table and table.startswith("ObjectTable(3000 grasps")
+
+
+def test_grasps_of_a_saved_table_are_the_grasps_written(tmp_path: Path) -> None:
+    made = _table(3, rejected=2)
+    dataset.save(tmp_path / "d.h5", {"obj": made})
+    table = with_rejected(dataset.load(tmp_path / "d.h5")["obj"])
+    grasps = grasps_of(table)
+    assert len(grasps) == 5 and len(grasps_of(table, 2)) == 2 and grasps_of(None) == []
+    for i, g in enumerate(grasps):
+        np.testing.assert_allclose(np.r_[g.palm_pos, g.palm_quat_wxyz], table["palm_pose"][i], atol=1e-12)
+        np.testing.assert_array_equal(g.joints, table["hand_pose"][i])
 
 
 def test_copied_asset_root_is_hashed_in_place(ycb_copy: Path, tmp_path: Path) -> None:

@@ -39,16 +39,6 @@ def _diagnose_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", type=Path, help="write every grasp's findings and the summary as JSON")
 
 
-def _grasps(table: Any, n: int) -> list[Any]:
-    from sim.grasp import Grasp
-
-    out = []
-    for i in range(min(n, len(table) if table is not None else 0)):
-        pose = table["palm_pose"][i]
-        out.append(Grasp(pose[:3], pose[3:], table["hand_pose"][i]))
-    return out
-
-
 def _num(x: float, fmt: str = ".2f") -> str:
     """``x`` formatted, or a dash for NaN (no grasp in the group)."""
     return "—" if x != x else format(x, fmt)
@@ -114,6 +104,7 @@ def diagnose_dataset(path: Path, console: Console, *, object_name: str | None = 
     """Replay up to ``n`` failing and ``passing`` passing grasps per object of the dataset at
     ``path`` under ``protocol`` and print the findings; returns the exit code."""
     from augment import dataset
+    from augment.grasp_table import grasps_of
     from sim.hand.model import Hand
     from sim.io import write_bytes_atomic
     from sim.validate.diagnose import diagnose, summarise
@@ -132,8 +123,8 @@ def diagnose_dataset(path: Path, console: Console, *, object_name: str | None = 
         if not hand_name:
             raise DexaugError(f"{path}: object {name!r} has no 'hand' attribute")
         validator = Validator(Hand.load(hand_name), load_object(name))
-        jobs = [("failing", g) for g in _grasps(table.rejected, n)]
-        jobs += [("passing", g) for g in _grasps(table, passing)]
+        jobs = [("failing", g) for g in grasps_of(table.rejected, n)]
+        jobs += [("passing", g) for g in grasps_of(table, passing)]
         if not jobs:
             console.print(Text(f"{name}: no grasps to replay"))
             continue

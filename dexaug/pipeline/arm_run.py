@@ -35,6 +35,7 @@ import h5py
 import numpy as np
 
 from augment import dataset
+from augment.grasp_table import grasps_of
 from dexaug.pipeline.arm_report import ArmReportPart, write_arm_report
 from dexaug.pipeline.rest_grasps import RestGrasps
 from sim.arm.config import load_arm_config
@@ -42,7 +43,6 @@ from sim.arm.evaluate import ArmGraspResult, GraspSource, evaluate_on_arm
 from sim.arm.scene import ArmScene
 from sim.demo import Demo, DemoError, demo_from_json
 from sim.errors import DexaugError
-from sim.grasp import Grasp
 from sim.hand.model import Hand
 from sim.io import atomic_path
 from sim.versions import package_versions
@@ -66,12 +66,6 @@ class ArmRunSummary:
     failures: dict[str, int]
     seconds: float
     seconds_per_planned: float
-
-
-def _grasps(table: dataset.ObjectTable, limit: int | None) -> list[Grasp]:
-    n = len(table) if limit is None else min(limit, len(table))
-    return [Grasp.from_arrays(table["palm_pose"][i][:3], table["palm_pose"][i][3:],
-                              table["hand_pose"][i]) for i in range(n)]
 
 
 def _columns(results: list[ArmGraspResult], n_arm: int) -> dict[str, np.ndarray]:
@@ -149,7 +143,7 @@ def run_arm(grasps_path: Path, arm_name: str, out: Path, *, placements: int, see
         if not hand_name:
             raise DexaugError(f"{grasps_path}: table {name!r} has no 'hand' attribute")
         hand = Hand.load(hand_name)
-        grasps = _grasps(table, max_grasps)
+        grasps = grasps_of(table, max_grasps)
         if not grasps:
             raise DexaugError(f"{grasps_path}: table {name!r} holds no grasp to put on an arm")
         obj = load_object(name)
