@@ -30,8 +30,7 @@ import numpy as np
 
 from sim.metrics.lp import EqualityLP
 
-__all__ = ["HoldLoads", "finger_contacts", "min_actuator_effort", "min_actuator_efforts", "min_grip_force_n",
-           "min_grip_forces_n"]
+__all__ = ["HoldLoads", "finger_contacts", "min_actuator_efforts", "min_grip_force_n", "min_grip_forces_n"]
 
 
 def finger_contacts(points_m: np.ndarray, normals_out: np.ndarray, finger: np.ndarray
@@ -150,15 +149,6 @@ def min_actuator_efforts(points_m: np.ndarray, normals_in: np.ndarray, centre_m:
     cost = np.zeros(v + 1)
     cost[v] = 1.0
     return EqualityLP(cost, np.hstack([a_eq, np.zeros((6, 1))]), np.vstack(a_ub)).minima(-loads)
-
-
-def min_actuator_effort(points_m: np.ndarray, normals_in: np.ndarray, centre_m: np.ndarray,
-                        load: np.ndarray, mu: float, effort_per_force: np.ndarray,
-                        effort_limit: np.ndarray, mu_torsion_m: float = 0.0, n_edges: int = 8
-                        ) -> float:
-    """:func:`min_actuator_efforts` of the one wrench ``load`` (6,)."""
-    return float(min_actuator_efforts(points_m, normals_in, centre_m, load, mu, effort_per_force,
-                                      effort_limit, mu_torsion_m, n_edges)[0])
 
 
 @dataclass(frozen=True)

@@ -176,7 +176,7 @@ def _least_grip_per_load(points: np.ndarray, normals_in: np.ndarray,
                          loads: HoldLoads) -> list[float]:
     """Per load of ``loads``, the least total normal force (newtons; inf: none holds it) with
     which contacts at ``points`` pressing along ``normals_in`` hold it
-    (:func:`sim.metrics.holding.min_grip_force_n`, with ``loads``' friction)."""
+    (:func:`sim.metrics.holding.min_grip_forces_n`, with ``loads``' friction)."""
     return min_grip_forces_n(points, normals_in, loads.com_m, loads.loads, loads.mu,
                              loads.mu_torsion_m).tolist()
 
