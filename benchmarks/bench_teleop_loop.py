@@ -22,14 +22,20 @@ twice — in demonstration mode (object held) and in free mode — and measured:
   episode), and how many of those episodes lifted: a grasp that does not hold in the
   validator cannot be lifted by steadier teleop.
 
-Speeds: ``natural`` closes in 0.3 s and lifts 0.15 s later (a person: first contact → lift
-≈ 0.35 s), ``slow`` in 0.8 s and 0.8 s (the synthetic operator's default). Objects are the
+Operators (:data:`OPERATORS`): ``human`` (the default) has a person's geometry and timing as
+measured on real Quest recordings — each fingertip stops 3–8 mm *short* of the surface (no
+press-in) and the lift begins 0.12–0.60 s (median 0.36 s) after the fingers reach the object;
+``synthetic`` is the operator's old natural speed (closes in 0.3 s pressing the tips 1 cm
+into the object, lifts 0.15 s later), which flatters the teleop path. Both recordings (free
+and demo mode) go through demo extraction; "person's fingers" needs every finger the human
+put within 10 mm of the object, and the thumb, among the demo's fingers. Each run writes a
+record under ``benchmarks/measured/teleop_loop/`` (:mod:`benchmarks.record`). Objects are the
 generic-grasp ones by default (no hand-built reference grasp); ``--objects`` takes any list.
 Also measured: how far a finger servo lags a 0.3 s min-jerk closure of 1.2 rad in free air at
 the bridge's servo gains and at the model's own (DESIGN §6 "fingers at human speed").
 
     .venv/bin/python benchmarks/bench_teleop_loop.py [--seeds 2] [--first-seed 0]
-                                                      [--speed natural|slow]
+                                                      [--operator human|synthetic]
                                                       [--objects a,b,...] [--workers 2]
                                                       [--validate-demos]
 """
@@ -49,12 +55,19 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numpy as np
 
-OBJECTS = ("006_mustard_bottle", "013_apple", "007_tuna_fish_can", "008_pudding_box",
-           "009_gelatin_box", "014_lemon", "016_pear", "017_orange", "021_bleach_cleanser",
-           "036_wood_block", "054_softball", "056_tennis_ball", "065_d_cups",
-           "002_master_chef_can")
-SPEEDS = {"natural": (0.3, 0.15), "slow": (0.8, 0.8)}
-HUMAN_TOUCH_M = 0.008
+#: the six objects of the real human recordings first, then generic-grasp objects
+OBJECTS = ("004_sugar_box", "005_tomato_soup_can", "021_bleach_cleanser", "024_bowl",
+           "006_mustard_bottle", "002_master_chef_can", "013_apple", "007_tuna_fish_can",
+           "008_pudding_box", "009_gelatin_box", "014_lemon", "016_pear", "017_orange",
+           "036_wood_block", "054_softball", "056_tennis_ball", "065_d_cups")
+#: operator settings (SynthConfig fields): a person's geometry and timing as measured on real
+#: Quest recordings (tips 3–8 mm short of the surface, lift 0.12–0.60 s after the fingers reach
+#: the object, uniform: median 0.36 s), and the synthetic operator's old natural speed
+#: (presses 1 cm in, lifts 0.24 s after touching, holds)
+OPERATORS = {"human": {"close_s": 0.3, "standoff_m": (0.003, 0.008),
+                       "lift_delay_s": (0.12, 0.60), "press_depth_m": 0.0},
+             "synthetic": {"close_s": 0.3, "settle_s": 0.15}}
+HUMAN_TOUCH_M = 0.010
 PUSHED_M = 0.005
 
 
@@ -142,25 +155,51 @@ def _hold_height_m(ep, states: list[dict], t: np.ndarray) -> float:
     return float(np.median(z[hold]) - np.median(z[t < ep.phases["approach"][0]]))
 
 
-def run_one(job: tuple[str, str, int, str, str, bool]) -> dict:
-    hand_name, obj, seed, speed, out, validate_demo = job
-    os.environ.setdefault("MUJOCO_GL", "egl")
+def _demos_of(path: Path, human: list[str]) -> dict:
+    """What demo extraction gives for the recording at ``path``: whether a demo came out, the
+    fingers of its fullest one, whether those include every finger the human used and the
+    thumb (the issue's "with the fingers the person used"), or why none came out."""
     from sim.demo import DemoError
+    from teleop.record.demos import extract_demos
+
+    try:
+        demos, why = extract_demos(path), ""
+    except DemoError as exc:
+        demos, why = [], str(exc).split(": ", 2)[-1][:90]
+    best = max(demos, key=lambda x: len(x.fingers)) if demos else None
+    fingers = sorted(best.fingers) if best else []
+    return {"demo": bool(demos), "fingers": fingers, "why": why, "best": best,
+            "human_fingers": bool(demos) and set(human) <= set(fingers) and "thumb" in fingers}
+
+
+def _thumb_links_touching(path: Path, ep, hand) -> dict[str, bool]:
+    """Which thumb links touched the object from the closure's start to the lift's: its
+    distal (the pad the person used) and the rest (the middle phalanx touching instead is the
+    issue's commonest thumb failure)."""
+    contacts, tc = _states_on_operator_clock(path, ep, "/contacts")
+    during = (tc >= ep.phases["close"][0]) & (tc <= ep.phases["lift"][0])
+    bodies = {x["hand_body"] for c, d in zip(contacts, during, strict=True) if d
+              for x in c["contacts"]}
+    links = list(hand.config.finger(hand.finger_names[0]).links)
+    return {"thumb_tip": links[-1] in bodies, "thumb_other": bool(bodies & set(links[:-1]))}
+
+
+def run_one(job: tuple[str, str, int, str, str, bool]) -> dict:
+    hand_name, obj, seed, operator, out, validate_demo = job
+    os.environ.setdefault("MUJOCO_GL", "egl")
     from sim.hand.model import Hand
     from teleop.bridge.config import load_bridge_config
     from teleop.bridge.rerecord import rerecord
-    from teleop.record.demos import extract_demos
     from teleop.synthetic.config import load_synth_config
     from teleop.synthetic.synthesize import synthesize
     from teleop.synthetic.writer import write_session
 
-    close_s, settle_s = SPEEDS[speed]
     rng = np.random.default_rng(seed)
     yaw = float(rng.uniform(-40, 40))
     bridge = load_bridge_config()   # the object's spot on the bridge's table, tracking space
     spot = np.array([*bridge.object_pos_m, 0.0]) - bridge.world_offset_m
     pos = tuple(spot + np.array([rng.uniform(-0.03, 0.03), rng.uniform(-0.05, 0.05), 0.0]))
-    cfg = dataclasses.replace(load_synth_config(), close_s=close_s, settle_s=settle_s,
+    cfg = dataclasses.replace(load_synth_config(), **OPERATORS[operator],
                               object_rpy_deg=(0.0, 0.0, yaw), object_pos_m=pos)
     hand = Hand.load(hand_name)
     row = {"object": obj, "seed": seed}
@@ -169,25 +208,26 @@ def run_one(job: tuple[str, str, int, str, str, bool]) -> dict:
     except Exception as exc:   # no generic grasp for this object: reported, not counted
         row["skipped"] = f"{type(exc).__name__}: {str(exc)[:80]}"
         return row
+    row["lift_delay_s"] = ep.metadata["lift_delay_s"]
+    row["standoff_m"] = ep.metadata["standoff_m"]
     d = Path(out) / f"{obj}_{seed}"
     d.mkdir(parents=True, exist_ok=True)
     raw = write_session(ep, d / "raw.mcap", overwrite=True)
     row["human"] = _human_fingers(ep, obj, hand)
     demo_path = rerecord(raw, d / "demo.mcap", object_mode="demo")
     row["pad_gaps_m"] = _pad_gaps_m(demo_path, ep, obj, hand, row["human"])
-    try:
-        demos = extract_demos(demo_path)
-    except DemoError as exc:
-        demos, row["why"] = [], str(exc).split(": ", 2)[-1][:90]
-    best = max(demos, key=lambda x: len(x.fingers)) if demos else None
-    row["fingers"] = sorted(best.fingers) if best else []
-    if validate_demo and best is not None:
+    held = _demos_of(demo_path, row["human"])
+    row.update({f"{k}_demo_mode": held[k] for k in ("demo", "fingers", "why", "human_fingers")})
+    row.update({f"{k}_demo_mode": v for k, v in _thumb_links_touching(demo_path, ep, hand).items()})
+    if validate_demo and held["best"] is not None:
         from dexaug.pipeline.run import validate_demo_grasp
 
-        row["demo_holds"] = bool(validate_demo_grasp(hand_name, obj, best, "lift-drop")["passed"])
-    row["demo"] = bool(demos)
-    row["human_fingers"] = bool(demos) and set(row["human"]) <= set(row["fingers"])
+        row["demo_holds"] = bool(validate_demo_grasp(hand_name, obj, held["best"],
+                                                     "lift-drop")["passed"])
     free = rerecord(raw, d / "free.mcap", object_mode="free")
+    loose = _demos_of(free, row["human"])
+    row.update({f"{k}_free": loose[k] for k in ("demo", "fingers", "why", "human_fingers")})
+    row.update({f"{k}_free": v for k, v in _thumb_links_touching(free, ep, hand).items()})
     states, t = _states_on_operator_clock(free, ep)
     row["hold_height_m"] = _hold_height_m(ep, states, t)
     row["push_m"], row["first_touch"] = _approach_push(free, ep, states, t)
@@ -229,67 +269,108 @@ def finger_lag_s(hand_name: str, kp_scale: float, close_s: float = 0.3,
     return float("nan") if t_cmd is None or t_sim is None else t_sim - t_cmd
 
 
+#: the figures per episode that the summary counts, and their labels
+COUNTED = (("demo_free", "demo (free)"), ("human_fingers_free", "person's fingers (free)"),
+           ("lifted", "lifted (free)"), ("demo_demo_mode", "demo (demo mode)"),
+           ("human_fingers_demo_mode", "person's fingers (demo mode)"),
+           ("thumb_tip_demo_mode", "thumb tip touched (demo mode)"),
+           ("thumb_other_demo_mode", "other thumb link touched (demo mode)"))
+
+
+def summarize(rows: list[dict]) -> dict:
+    """Counts of :data:`COUNTED` over the episodes that ran, overall and per object."""
+    ok = [r for r in rows if "skipped" not in r]
+
+    def counts(sel: list[dict]) -> dict:
+        return {"episodes": len(sel), **{k: sum(bool(r.get(k)) for r in sel) for k, _ in COUNTED}}
+
+    gaps = np.concatenate([r["pad_gaps_m"] for r in ok]) if ok else np.zeros(0)
+    return {**counts(ok), "skipped": len(rows) - len(ok),
+            "pushed": sum(r["push_m"] > PUSHED_M for r in ok),
+            "pad_gap_median_m": float(np.median(gaps)) if len(gaps) else None,
+            "per_object": {o: counts([r for r in ok if r["object"] == o])
+                           for o in dict.fromkeys(r["object"] for r in ok)}}
+
+
+def _print_rows(rows: list[dict]) -> None:
+    print(f"\n{'object':22s} seed  human fingers  | free: robot fingers, lifted | demo mode: "
+          "robot fingers | pushed (first touch)")
+    for r in rows:
+        if "skipped" in r:
+            print(f"{r['object']:22s} {r['seed']:4d}  skipped: {r['skipped']}")
+            continue
+        free = ",".join(r["fingers_free"]) or r["why_free"][:40]
+        held = ",".join(r["fingers_demo_mode"]) or r["why_demo_mode"][:40]
+        print(f"{r['object']:22s} {r['seed']:4d}  {','.join(r['human'])} | {free} "
+              f"{'LIFTED' if r['lifted'] else ''} | {held} | {r['push_m'] * 1e3:.1f} mm "
+              f"{'(' + r['first_touch'] + ')' if r['first_touch'] else ''}")
+
+
+def _print_summary(summary: dict, label: str, wall_s: float) -> None:
+    n = summary["episodes"]
+
+    def pct(k: str, sel: dict) -> str:
+        return f"{sel[k]}/{sel['episodes']} ({100 * sel[k] / max(sel['episodes'], 1):.0f} %)"
+
+    print(f"\n{label}: {n} episodes ({summary['skipped']} skipped), {wall_s:.0f} s")
+    for k, name in COUNTED:
+        print(f"  {name:38s} {pct(k, summary)}")
+    print(f"  pushed > {PUSHED_M * 1e3:.0f} mm before the closure (free): {summary['pushed']}/{n}")
+    print(f"\n{'object':22s} " + "  ".join(f"{name[:22]:>22s}" for _, name in COUNTED[:5]))
+    for obj, c in summary["per_object"].items():
+        print(f"{obj:22s} " + "  ".join(f"{pct(k, c):>22s}" for k, _ in COUNTED[:5]))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seeds", type=int, default=2)
     ap.add_argument("--first-seed", type=int, default=0,
                     help="seeds first-seed … first-seed + seeds − 1 (a held-out set: --first-seed 4)")
-    ap.add_argument("--speed", choices=sorted(SPEEDS), default="natural")
+    ap.add_argument("--operator", choices=sorted(OPERATORS), default="human",
+                    help="human: a person's standoff and lift timing (default); synthetic: the "
+                    "operator's old natural-speed settings (presses 1 cm in, holds)")
     ap.add_argument("--objects", default=",".join(OBJECTS))
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--hand", default=None, help="hand (default: configs/hands/default.toml)")
     ap.add_argument("--validate-demos", action="store_true",
                     help="also check each demo's grasp with the validator's lift-drop")
+    ap.add_argument("--no-record", action="store_true",
+                    help="do not write a record under benchmarks/measured/teleop_loop/")
     args = ap.parse_args()
     from sim.hand.config import default_hand_name
     from teleop.bridge.config import load_bridge_config
 
     hand = args.hand or default_hand_name()
     kp = load_bridge_config().servos.kp_scale
+    lag = {"bridge": finger_lag_s(hand, kp), "model": finger_lag_s(hand, 1.0)}
     print(f"{hand}: finger lag behind a 0.3 s closure of 1.2 rad (free air): "
-          f"{finger_lag_s(hand, kp) * 1e3:.0f} ms at the bridge's kp × {kp:g}, "
-          f"{finger_lag_s(hand, 1.0) * 1e3:.0f} ms at the model's own")
+          f"{lag['bridge'] * 1e3:.0f} ms at the bridge's kp × {kp:g}, "
+          f"{lag['model'] * 1e3:.0f} ms at the model's own")
     objects = args.objects.split(",")
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
-        jobs = [(hand, o, s, args.speed, tmp, args.validate_demos) for o in objects
+        jobs = [(hand, o, s, args.operator, tmp, args.validate_demos) for o in objects
                 for s in range(args.first_seed, args.first_seed + args.seeds)]
         with ProcessPoolExecutor(args.workers) as ex:
             rows = list(ex.map(run_one, jobs))
     wall = time.perf_counter() - t0
-    print(f"\n{'object':22s} seed  demo  human fingers → robot fingers{'':14s} hold height  "
-          "pushed before closure (first touch)  demo grasp in lift-drop")
-    for r in rows:
-        if "skipped" in r:
-            print(f"{r['object']:22s} {r['seed']:4d}  skipped: {r['skipped']}")
-            continue
-        fingers = f"{','.join(r['human'])} → {','.join(r['fingers']) or r.get('why', '-')}"
-        print(f"{r['object']:22s} {r['seed']:4d}  {'yes' if r['demo'] else 'no ':4s}  "
-              f"{fingers[:44]:44s} {r['hold_height_m'] * 1e3:6.0f} mm "
-              f"{'lifted' if r['lifted'] else '      '} {r['push_m'] * 1e3:5.1f} mm "
-              f"{'(' + r['first_touch'] + ')' if r['first_touch'] else '':16s}"
-              f"{'' if 'demo_holds' not in r else 'holds' if r['demo_holds'] else 'slips'}")
-    ok = [r for r in rows if "skipped" not in r]
-    n = len(ok)
-    share = {k: sum(bool(r[k]) for r in ok) for k in ("demo", "human_fingers", "lifted")}
-    gaps = np.concatenate([r["pad_gaps_m"] for r in ok]) if ok else np.zeros(0)
-    print(f"\nsimulated pads of the human's fingers at the grasp moment (demo mode): gap to the "
-          f"object median {np.median(gaps) * 1e3:.1f} mm, |gap| median "
-          f"{np.median(np.abs(gaps)) * 1e3:.1f} mm, within 3 mm {np.mean(np.abs(gaps) <= 0.003):.0%}"
-          f" ({len(gaps)} pads)")
-    print(f"\n{args.speed} speed, {n} episodes ({len(rows) - n} skipped), {wall:.0f} s: demos "
-          f"{share['demo']}/{n} ({100 * share['demo'] / max(n, 1):.0f} %), with the human's "
-          f"fingers {share['human_fingers']}/{n} ({100 * share['human_fingers'] / max(n, 1):.0f} "
-          f"%), lifted in free mode {share['lifted']}/{n} "
-          f"({100 * share['lifted'] / max(n, 1):.0f} %)")
-    pushed = [r for r in ok if r["push_m"] > PUSHED_M]
-    print(f"pushed more than {PUSHED_M * 1e3:.0f} mm before the closure began (free mode): "
-          f"{len(pushed)}/{n}; lifted among those: {sum(bool(r['lifted']) for r in pushed)}")
+    _print_rows(rows)
+    summary = summarize(rows)
+    _print_summary(summary, f"{args.operator} operator", wall)
     if args.validate_demos:
+        ok = [r for r in rows if "skipped" not in r]
         holds = [r for r in ok if r.get("demo_holds")]
         print(f"demo grasps that hold in the validator (lift-drop, real mass): {len(holds)}/"
-              f"{share['demo']}; lifted in free mode among those episodes: "
-              f"{sum(bool(r['lifted']) for r in holds)}/{len(holds)}")
+              f"{sum(bool(r['demo_demo_mode']) for r in ok)}")
+    if not args.no_record:
+        from benchmarks.record import write_record
+
+        path = write_record("teleop_loop", rows, summary={**summary, "wall_s": wall,
+                                                          "finger_lag_s": lag},
+                            config={**vars(args), "operator_settings": OPERATORS[args.operator],
+                                    "human_touch_m": HUMAN_TOUCH_M},
+                            hand=hand, objects=objects)
+        print(f"record: {path}")
 
 
 if __name__ == "__main__":

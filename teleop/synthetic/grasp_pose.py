@@ -32,8 +32,8 @@ from sim.transforms import quat_to_mat
 from teleop.synthetic.config import SynthConfig
 from teleop.synthetic.correspondence import Correspondence
 from teleop.synthetic.grasp_search import search_grasp
-from teleop.synthetic.human_hand import LONG_FINGERS, HandPose, HumanHand, finger_of
-from teleop.synthetic.surface import closest_surface_points
+from teleop.synthetic.human_hand import FINGERS, LONG_FINGERS, HandPose, HumanHand, finger_of
+from teleop.synthetic.surface import closest_surface_frames
 
 __all__ = ["GraspTarget", "grasp_target"]
 
@@ -62,14 +62,17 @@ class GraspTarget:
 
 def grasp_target(robot: Hand, human: HumanHand, corr: Correspondence, scale: float,
                  object_name: str, obj_pos: Array, obj_rot: Array, *, grasp_name: str | None,
-                 snap_m: float, press_m: float = 0.0,
+                 snap_m: float, press_m: float | Array = 0.0,
                  grip_friction: float = SynthConfig.grip_friction) -> GraspTarget:
     """The operator's grasp of ``object_name`` (world pose ``obj_pos``, ``obj_rot``) for robot
     hand ``robot``: imitating its reference grasp for the object (or ``grasp_name``), else a
     generic side grasp (module docstring). ``scale``: the retargeter's fingertip scale for this
     operator; ``snap_m``: reference pulp sites this close to the surface go onto it;
-    ``press_m``: in a generic grasp, the operator closes the fingertips this far past the
-    surface (metres); ``grip_friction``: the friction the operator counts on to hold it up."""
+    ``press_m``: the operator closes the fingertips this far past the surface (metres; a
+    generic grasp only), or, per finger (an array in :data:`FINGERS` order, thumb first,
+    negative), stops each this far short of it — a person's standoff, applied to a reference
+    grasp's snapped pulp sites as well; ``grip_friction``: the friction the operator counts
+    on to hold it up."""
     ref = _reference_for(robot, object_name, grasp_name)
     residual: dict[str, float] = {}
     if ref is not None:
@@ -79,7 +82,8 @@ def grasp_target(robot: Hand, human: HumanHand, corr: Correspondence, scale: flo
         tips_palm = robot.fingertip_sites(ref.grasp.joints, frame="palm")[0]
         if snap_m > 0.0:
             tips_palm = _snap_tips(tips_palm, object_name, ref.grasp.palm_pos,
-                                   quat_to_mat(ref.grasp.palm_quat_wxyz), snap_m)
+                                   quat_to_mat(ref.grasp.palm_quat_wxyz), snap_m,
+                                   _robot_standoffs(robot, corr, press_m))
         grasp_pose = HandPose.relaxed()
         for k, robot_finger in enumerate(robot.finger_names):
             joint = corr.mapping.fingers.get(robot_finger)
@@ -120,20 +124,39 @@ def _reference_for(hand: Hand, object_name: str, grasp_name: str | None) -> Any:
     return None
 
 
+def _robot_standoffs(robot: Hand, corr: Correspondence, press_m: float | Array) -> Array | None:
+    """Per robot finger, how far short of the surface its operator finger stops (metres), from
+    a per-finger ``press_m`` (:data:`FINGERS` order, negative: short); None for a scalar press
+    (a reference grasp is then imitated as it is)."""
+    if np.ndim(press_m) == 0:
+        return None
+    short = -np.asarray(press_m, float)
+    out = np.zeros(len(robot.finger_names))
+    for k, robot_finger in enumerate(robot.finger_names):
+        joint = corr.mapping.fingers.get(robot_finger)
+        if joint is not None:
+            out[k] = short[FINGERS.index(finger_of(joint))]
+    return out
+
+
 def _snap_tips(tips_palm: Array, object_name: str, palm_pos_obj: Array, palm_rot_obj: Array,
-               max_gap_m: float) -> Array:
+               max_gap_m: float, standoff_m: Array | None = None) -> Array:
     """Reference pulp sites (frame_palm) within ``max_gap_m`` of the object's surface moved
-    onto it (closest point). Why: hand-built reference grasps touch the object with whatever
+    onto it (closest point), or, with ``standoff_m`` (per robot finger, metres), that far out
+    along the surface normal. Why: hand-built reference grasps touch the object with whatever
     part of the finger met it first, so their pulp sites sit up to ~1.5 cm off the surface;
-    an operator grasping the object puts the finger *pads* on it. Fingers farther away (the
-    reference's unused fingers) keep their place. (No press past the surface here: a
-    reference grasp's pads on a thin wall, a bowl's rim, would aim through it.)"""
+    an operator grasping the object puts the finger *pads* on it — a real one, seen by the
+    headset, a few millimetres short of it. Fingers farther away (the reference's unused
+    fingers) keep their place. (No press past the surface here: a reference grasp's pads on a
+    thin wall, a bowl's rim, would aim through it.)"""
     from sim.world.objects import load_object
 
     mesh = load_object(object_name).surface_mesh()
     tips_obj = palm_pos_obj + tips_palm @ palm_rot_obj.T
-    closest, signed = closest_surface_points(mesh, tips_obj)
+    closest, signed, normals = closest_surface_frames(mesh, tips_obj)
     snap = np.abs(signed) <= max_gap_m
+    if standoff_m is not None:
+        closest = closest + np.asarray(standoff_m, float)[:, None] * normals
     tips_obj = np.where(snap[:, None], closest, tips_obj)
     logger.info("reference pulp sites off the surface (m): %s; snapped: %s",
                 np.round(signed, 4).tolist(), snap.tolist())

@@ -9,8 +9,9 @@ near the object and closes every finger until the object stops it. The search do
 with the human hand model: for each candidate wrist placement it closes each finger along
 the open → power-grasp path (:meth:`HandPose.relaxed` → :meth:`HandPose.power`) to the first
 level whose *mapped* tip (through the retargeter's wrist correspondence and fingertip scale,
-:class:`teleop.synthetic.correspondence.Correspondence`) lies ``press_m`` past the surface,
-and scores the placement by how well the thumb and an opposing finger reach that depth, with
+:class:`teleop.synthetic.correspondence.Correspondence`) lies ``press_m`` past the surface
+(one depth for all fingers, or one per finger; negative: that far short of it, a person's
+standoff), and scores the placement by how well the thumb and an opposing finger reach that depth, with
 the other fingers touching as a bonus. Placements where the robot palm box (``[palm]`` of the
 hand config, frame_palm) would enter the object or the table, where the open hand already
 goes into the object, or where a robot finger's links (its pad aside) go into it at the
@@ -204,7 +205,7 @@ class _Scored:
 
 
 def _score(robot: Hand, human: HumanHand, corr: Correspondence, scale: float, sdf: _Sdf,
-           table_z: float, pos: Array, rots: Array, press_m: float) -> _Scored:
+           table_z: float, pos: Array, rots: Array, press_m: float | Array) -> _Scored:
     """Every placement, each finger closed along the open → power-grasp path to its level, its
     cost and rejections (module docstring)."""
     poses = [lerp_pose(HandPose.relaxed(), HandPose.power(), float(s)) for s in _LEVELS]
@@ -218,7 +219,7 @@ def _score(robot: Hand, human: HumanHand, corr: Correspondence, scale: float, sd
     reach_w = pos[:, None, None] + np.einsum("nij,lkj->nlki", rots, reach)  # (N, L, 5, 3)
     tip_sd, tip_normals = sdf(reach_w)
     n_pl, n_lv = len(pos), len(_LEVELS)
-    err = tip_sd + press_m                                                 # (N, L, 5)
+    err = tip_sd + np.asarray(press_m, float)                              # (N, L, 5)
     # each finger closes to the first level whose tip is press_m inside, or fully
     reached = err <= 0.0
     first = np.where(reached.any(axis=1), np.argmax(reached, axis=1), n_lv - 1)   # (N, 5)
@@ -264,7 +265,7 @@ def _grip_ratio(c: _Scored, i: int, com_m: Array, friction: float) -> float:
 
 
 def search_grasp(robot: Hand, human: HumanHand, corr: Correspondence, scale: float, mesh: Any,
-                 obj_pos: Array, obj_rot: Array, press_m: float, com_m: Array,
+                 obj_pos: Array, obj_rot: Array, press_m: float | Array, com_m: Array,
                  friction: float) -> GenericGrasp:
     """The best generic grasp of ``mesh`` (object frame; the object at ``obj_pos``,
     ``obj_rot`` in the world, resting on a table at its lowest point, its centre of mass at
@@ -293,7 +294,8 @@ def search_grasp(robot: Hand, human: HumanHand, corr: Correspondence, scale: flo
     pose = HandPose.from_vector(np.concatenate(
         [c.poses[level[0]].thumb, *(c.poses[level[k + 1]].fingers[f]
                                     for k, f in enumerate(LONG_FINGERS))]))
-    surface = {f: float(c.err[i, level[k], k] - press_m) for k, f in enumerate(FINGERS)}
+    press = np.broadcast_to(np.asarray(press_m, float), (len(FINGERS),))
+    surface = {f: float(c.err[i, level[k], k] - press[k]) for k, f in enumerate(FINGERS)}
     touching = tuple(f for k, f in enumerate(FINGERS) if c.touch[i, k])
     logger.info("generic grasp: %d of %d placements valid; cost %.4f (rank %d of the fitting), "
                 "grip ratio %.2f, palm normal %s, fingers %s, touching %s", len(order),

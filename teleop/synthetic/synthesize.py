@@ -20,6 +20,7 @@ metres, seconds, radians (degrees only in ``*_deg`` keys); quaternions wxyz in m
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from collections.abc import Sequence
 from pathlib import Path
@@ -30,9 +31,9 @@ from sim.hand.model import Hand
 from sim.transforms import mat_to_quat, quat_to_mat, rpy_deg_to_mat
 from teleop.synthetic.config import SynthConfig, load_synth_config
 from teleop.synthetic.correspondence import Correspondence
-from teleop.synthetic.episode import GraspMotion, SynthEpisode
+from teleop.synthetic.episode import TOUCH_AT, GraspMotion, SynthEpisode
 from teleop.synthetic.grasp_pose import grasp_target
-from teleop.synthetic.human_hand import HumanHand, finger_of
+from teleop.synthetic.human_hand import FINGERS, HumanHand, finger_of
 from teleop.synthetic.preshape import Obstacles
 from teleop.synthetic.sensor import DEVICE_T0_S, observe
 
@@ -74,14 +75,17 @@ def synthesize(object_name: str, *, hand: Hand | str, seed: int = 0,
     obj_rot = (quat_to_mat(np.asarray(object_quat_wxyz, float) /
                            np.linalg.norm(object_quat_wxyz)) if object_quat_wxyz is not None
                else rpy_deg_to_mat(cfg.object_rpy_deg))
+    standoff, cfg = _human_draws(cfg, seed)
     target = grasp_target(robot, human, corr, scale, object_name, obj_pos, obj_rot,
                           grasp_name=grasp_name, snap_m=cfg.tip_surface_snap_m,
-                          press_m=cfg.press_depth_m, grip_friction=cfg.grip_friction)
+                          press_m=cfg.press_depth_m if standoff is None else -standoff,
+                          grip_friction=cfg.grip_friction)
 
     motion = GraspMotion.plan(cfg, target.wrist_pos_m, target.wrist_rot, target.palm_rot,
                               target.pose, human=human,
                               obstacles=_obstacles(object_name, obj_pos, obj_rot),
-                              pressed=target.reference is None and cfg.press_depth_m > 0.0)
+                              pressed=target.reference is None and standoff is None
+                              and cfg.press_depth_m > 0.0)
     rng = np.random.default_rng(seed)
     frames, tracked = observe(motion, human, cfg, rng, source=f"synth:{object_name}:seed{seed}")
     phases, t0 = motion.phases, DEVICE_T0_S
@@ -101,4 +105,29 @@ def synthesize(object_name: str, *, hand: Hand | str, seed: int = 0,
                   "object_pos_m": obj_pos.tolist(),
                   "object_quat_wxyz": mat_to_quat(obj_rot).tolist(),
                   "joint_names": list(robot.joint_names),
-                  "fingers": list(robot.finger_names)})
+                  "fingers": list(robot.finger_names),
+                  "standoff_m": None if standoff is None else dict(zip(
+                      FINGERS, np.round(standoff, 5).tolist(), strict=True)),
+                  "lift_delay_s": _lift_delay(cfg)})
+
+
+def _human_draws(cfg: SynthConfig, seed: int) -> tuple[np.ndarray | None, SynthConfig]:
+    """The episode's human geometry and timing (``standoff_m``, ``lift_delay_s`` of
+    :class:`SynthConfig`): per finger (thumb first, :data:`FINGERS`) how far short of the
+    surface the tip stops (metres; None when off), and the config with ``settle_s`` set so
+    that the lift begins the drawn delay after the fingers reach the object (they reach it at
+    :data:`teleop.synthetic.episode.TOUCH_AT` of the close phase). Drawn from their own
+    stream of the seed, so switching them on leaves the sensor's noise and dropouts as they
+    were."""
+    rng = np.random.default_rng([seed, 0x5EED])
+    standoff = (rng.uniform(*cfg.standoff_m, len(FINGERS)) if cfg.standoff_m[1] > 0.0
+                else None)
+    if cfg.lift_delay_s[1] > 0.0:
+        delay = float(rng.uniform(*cfg.lift_delay_s))
+        cfg = dataclasses.replace(cfg, settle_s=max(delay - (1.0 - TOUCH_AT) * cfg.close_s, 0.0))
+    return standoff, cfg
+
+
+def _lift_delay(cfg: SynthConfig) -> float:
+    """Seconds from the fingers reaching the object to the start of the lift."""
+    return round((1.0 - TOUCH_AT) * cfg.close_s + cfg.settle_s, 6)
