@@ -64,11 +64,34 @@ def test_cue_follows_the_demo_rule_and_forgives_short_gaps() -> None:
     cue = GraspCue("thumb")
     assert cue.update(0.0, {"forefinger"}) == (False, 0.0)    # no thumb: no grasp
     assert cue.update(0.1, {"thumb", "forefinger"})[1] == 0.0
-    assert cue.update(0.2, set()) == (False, pytest.approx(0.1))   # a 0.1 s gap: still held
-    assert cue.update(0.3, {"thumb", "ring"}) == (False, pytest.approx(0.2))
-    stable, held = cue.update(0.45, {"thumb", "middle"})
+    assert cue.update(0.2, {"thumb", "forefinger"}) == (False, pytest.approx(0.1))
+    assert cue.update(0.3, set()) == (False, pytest.approx(0.1))   # a 0.1 s gap: not counted
+    assert cue.update(0.35, {"thumb", "ring"}) == (False, pytest.approx(0.1))   # nor ended
+    stable, held = cue.update(0.5, {"thumb", "middle"})
+    assert not stable and held == pytest.approx(0.25)
+    stable, held = cue.update(0.6, {"thumb", "middle"})
     assert stable and held == pytest.approx(0.35)
     assert cue.update(1.0, set()) == (False, 0.0)             # gone longer than max_gap_s
+
+
+def test_a_flickering_touch_is_not_a_stable_grasp() -> None:
+    """Thumb and finger in contact 0.03 s of every 0.23 s for 1.5 s (a touch that flickers,
+    never a grasp): the cue must not call it stable, nor the assist engage for long — counted
+    through the gaps (the old rule) it read 1.4 s held and "stable" at 0.3 s."""
+    cue, dt = GraspCue("thumb"), 0.004
+    held_max, stable_any = 0.0, False
+    for k in range(int(1.5 / dt)):
+        t = k * dt
+        touching = {"thumb", "forefinger"} if (t % 0.23) < 0.03 else set()
+        stable, held = cue.update(t, touching)
+        stable_any |= stable
+        held_max = max(held_max, held)
+    assert not stable_any
+    assert held_max < 0.3, held_max
+    steady = GraspCue("thumb")
+    n = int(0.31 / dt)
+    results = [steady.update(k * dt, {"thumb", "middle"}) for k in range(n + 1)]
+    assert results[-1][0] and results[-1][1] == pytest.approx(n * dt)   # every step counted
 
 
 # --- the bridge's servos ---------------------------------------------------------------------
