@@ -190,3 +190,15 @@ def test_the_report_embeds_the_viewer(chromium, result: Path) -> None:
     assert page.locator("a[href='viewer.html']").count() == 1
     assert page.locator("img[src='palm_cloud.png']").count() == 1   # the print view is kept
     assert not [c for c in console if c.startswith("pageerror")], console
+
+
+def test_a_table_with_no_grasps_is_a_scene_with_none(shadow) -> None:
+    """FSG finding no grasp is a result: the page shows the object alone (the empty table
+    crashed the report with "cannot reshape array of size 0")."""
+    from sim.world.objects import load_object
+
+    table = dataset.from_fsg([], tuple(shadow.joint_names), tuple(shadow.finger_names), [],
+                             attrs={"hand": shadow.name})
+    scene = viewer_scene(table, shadow, load_object("004_sugar_box"))
+    assert scene["grasps"]["n"] == 0 and scene["grasps_in_table"] == 0
+    assert scene["grasps"]["verdict"] == [] and scene["object"]["mesh"]

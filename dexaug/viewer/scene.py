@@ -109,6 +109,8 @@ def grasp_body_poses(hand: Hand, palm_pose: np.ndarray, joints: np.ndarray,
     given as frame_palm poses (N, 7) and joint vectors (N, nq): T_body = T_palm ·
     T_base→palm(q)⁻¹ · T_base→body(q), batched forward kinematics of the hand model."""
     palm_pose = np.asarray(palm_pose, float).reshape(-1, 7)
+    if not len(palm_pose):      # FSG found no grasp: a result, drawn as an object alone
+        return np.zeros((0, len(bodies), 7))
     q = hand.check_q(np.asarray(joints, float).reshape(len(palm_pose), -1), "hand_pose")
     pos, quat = hand.body_poses(q)                         # base frame, (N, nbody, ·)
     ppos, pquat = hand.palm_pose(q)                        # base frame, (N, ·)

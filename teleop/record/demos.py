@@ -170,10 +170,15 @@ def _merged_runs(clock_ns: np.ndarray, ok: np.ndarray, max_gap_s: float) -> list
     return merged
 
 
-def _best_in(track: _Track, lo: int, hi: int) -> int:
-    n = np.array([len(track.fingers_touching[i]) for i in range(lo, hi)])
-    best = np.flatnonzero(n == n.max())
-    return lo + int(best[len(best) // 2])
+def _best_in(track: _Track, lo: int, hi: int, ok: np.ndarray) -> int:
+    """The grasp moment of the run [lo, hi): of its states that meet the rule (``ok``: the
+    lead finger and enough others touching), the one with the most fingertips (the middle one
+    of ties). Only those: a gap-bridged run also holds states inside its gaps, and the fullest
+    of all could be one without the thumb — a thumbless demo of a thumb grasp."""
+    idx = lo + np.flatnonzero(ok[lo:hi])
+    n = np.array([len(track.fingers_touching[i]) for i in idx])
+    best = idx[n == n.max()]
+    return int(best[len(best) // 2])
 
 
 def _demo_at(session: Session, track: _Track, i: int, hand: str, obj: str, how: str,
@@ -258,7 +263,7 @@ def extract_demos(path: Path | str, params: DemoParams | None = None) -> list[De
         near = [m for m in marks
                 if clock[lo] - window_ns <= clock[m] <= clock[hi - 1] + window_ns]
         marks = [m for m in marks if m not in near]
-        moments[near[0] if near else _best_in(track, lo, hi)] = (
+        moments[near[0] if near else _best_in(track, lo, hi, ok)] = (
             "grasp_mark" if near else "stable contact", dur, hi)
     for m in marks:
         moments[m] = ("grasp_mark", 0.0, None)
