@@ -71,6 +71,7 @@ def test_cue_follows_the_demo_rule_and_forgives_short_gaps() -> None:
     assert not stable and held == pytest.approx(0.25)
     stable, held = cue.update(0.6, {"thumb", "middle"})
     assert stable and held == pytest.approx(0.35)
+    assert cue.grasp_s == pytest.approx(0.5)   # what the assist engages on: since it began
     assert cue.update(1.0, set()) == (False, 0.0)             # gone longer than max_gap_s
 
 

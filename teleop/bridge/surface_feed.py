@@ -71,7 +71,7 @@ class SurfaceFeed:
         t_s = self.sim_time_s
         touching = {c.finger for c in self._last_contacts if c.finger}
         stable, held_s = self._cue.update(t_s, touching)
-        self.retargeter.press_m = self._assist.update(t_s, held_s)
+        self.retargeter.press_m = self._assist.update(t_s, self._cue.grasp_s)
         self.grasp_state = {"grasp_stable": stable, "grasp_held_s": round(held_s, 3),
                             "assist": round(self._assist.level, 3)}
         base_p, base_q = self.scene.base_world_pose()
