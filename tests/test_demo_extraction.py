@@ -93,10 +93,11 @@ def marked(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def _rewrite(src: Path, dst: Path, log_time: Callable[[str, int], int],
              event: Callable[[dict], dict] | None = None,
-             contacts: Callable[[dict], dict] | None = None) -> Path:
+             contacts: Callable[[dict], dict] | None = None,
+             state: Callable[[dict], dict] | None = None) -> Path:
     """``src`` copied to ``dst`` (mcap's own reader and writer) with each message's log and
     publish time mapped by ``log_time(topic, t_ns)`` and, when given, each ``/events`` JSON
-    by ``event`` and each ``/contacts`` JSON by ``contacts``."""
+    by ``event``, each ``/contacts`` JSON by ``contacts`` and each ``/state`` by ``state``."""
     import json
 
     with open(src, "rb") as f_in, open(dst, "wb") as f_out:
@@ -117,7 +118,7 @@ def _rewrite(src: Path, dst: Path, log_time: Callable[[str, int], int],
                     channel.topic, channel.message_encoding, schema_ids[schema.id],
                     channel.metadata)
             data = msg.data
-            edit = {"/events": event, "/contacts": contacts}.get(channel.topic)
+            edit = {"/events": event, "/contacts": contacts, "/state": state}.get(channel.topic)
             if edit is not None:
                 data = json.dumps(edit(json.loads(data))).encode()
             t = log_time(channel.topic, msg.log_time)
@@ -259,3 +260,43 @@ def test_the_moment_of_a_bridged_run_has_the_thumb() -> None:
     ok = np.array(["thumb" in f and len(f) >= 2 for f in touching])
     i = _best_in(track, 0, n, ok)
     assert "thumb" in touching[i] and len(touching[i]) == 3
+
+
+def _first_grasp_s(path: Path) -> float:
+    """Simulated time (s) of the first contacts message with the thumb and another fingertip."""
+    for _, msg in open_session(path).json_messages("/contacts"):
+        fingers = {c.get("finger") for c in msg["contacts"]} - {None}
+        if "thumb" in fingers and len(fingers) >= 2:
+            return float(msg["t_s"])
+    raise AssertionError(f"{path}: no thumb grasp")
+
+
+def test_a_short_contact_the_hand_lifts_is_a_grasp(plain: Path, tmp_path: Path) -> None:
+    """People lift 0.12–0.64 s after the first contact: the bridged grasp cut to 0.1 s of
+    contact (shorter than min_duration_s) is no demo while the hand stays put, and is one —
+    "lift-confirmed contact", thumb included — when the palm rises 3 cm right after it (and
+    the object with it, in the free-object mode)."""
+    free = open_session(plain).metadata.get("object_mode", "free") != "demo"
+    t_a = _first_grasp_s(plain)
+
+    def short(msg: dict) -> dict:
+        keep = t_a <= float(msg["t_s"]) <= t_a + 0.1
+        return {**msg, "contacts": msg["contacts"] if keep else []}
+
+    def lifted(msg: dict) -> dict:
+        if float(msg["t_s"]) < t_a + 0.06:
+            return msg
+        up = [0.0, 0.0, 0.03]
+        out = {**msg, "palm_pos_m": list(np.add(msg["palm_pos_m"], up))}
+        if free:
+            out["object_pos_m"] = list(np.add(msg["object_pos_m"], up))
+        return out
+
+    same = lambda _topic, t: t   # noqa: E731
+    still = _rewrite(plain, tmp_path / "still.mcap", same, contacts=short)
+    with pytest.raises(DemoError, match="did not lift"):
+        extract_demos(still)
+    (demo,) = extract_demos(_rewrite(plain, tmp_path / "lift.mcap", same, contacts=short,
+                                     state=lifted))
+    assert demo.how == "lift-confirmed contact"
+    assert "thumb" in demo.fingers and 0.05 <= demo.duration_s <= 0.1 + 1e-9

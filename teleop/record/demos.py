@@ -10,7 +10,11 @@ body touches), one of each per bridge step. A *stable grasp* is a run of states 
 ``min_fingers`` fingertips touch the object, the hand's most important finger (its first in
 priority order: the thumb for the Shadow Hand) among them, lasting at least ``min_duration_s``;
 the moment inside a run is the state with the most fingertips in contact (the middle one of
-those, for ties). Contact losses shorter than ``max_gap_s`` do not split a run.
+those, for ties). Contact losses shorter than ``max_gap_s`` do not split a run. A shorter run
+(``min_confirmed_s`` at least) is a grasp when the hand lifts it — a *lift-confirmed contact*:
+people lift 0.12–0.64 s after first touching (median 0.36 s), so the contact before the lift
+is often shorter than ``min_duration_s``, and a hand that carries the object up, or in the
+demonstration mode rises off the held object right after, has grasped it.
 An operator's ``grasp_mark`` event names a moment: the state it names
 (``seq``) or the last one logged before it — or, within ``mark_snap_s`` of it, the usable state
 with the most fingertips in contact (ties: the nearest), because a person marks with a button
@@ -72,6 +76,16 @@ class DemoParams:
     max_gap_s: float = 0.25
     mark_window_s: float = 0.5
     mark_snap_s: float = 0.2
+    #: a shorter run is a grasp too when the hand lifts (:func:`_lift_confirmed`): a person
+    #: lifts 0.12–0.64 s after the first contact (median 0.36 s), so a held object gives a
+    #: contact run shorter than ``min_duration_s`` before it rises; this long at least (s)
+    min_confirmed_s: float = 0.05
+    #: the rise that confirms it (metres): the palm's, and in the free-object mode the
+    #: object's with it — well above tracking jitter (mm), well below a lift (5–15 cm)
+    lift_confirm_m: float = 0.02
+    #: in the demonstration mode (object held fixed) the palm must rise this soon after the
+    #: run ends (s): the operator lifting off the fixed object is the lift
+    lift_window_s: float = 1.0
 
 
 @dataclass
@@ -251,26 +265,53 @@ def extract_demos(path: Path | str, params: DemoParams | None = None) -> list[De
     n_touch = np.array([len(f) for f in track.fingers_touching])
     ok = np.array([lead in f for f in track.fingers_touching]) & (n_touch >= p.min_fingers)
     clock = track.clock_ns
+    free = meta.get("object_mode", "free") != "demo"
     runs = []
     for lo, hi in _split_at(_merged_runs(clock, ok, p.max_gap_s), _scene_breaks(session, track)):
         dur = (int(clock[hi - 1]) - int(clock[lo])) * 1e-9
         if dur >= p.min_duration_s:
-            runs.append((lo, hi, dur))
+            runs.append((lo, hi, dur, "stable contact"))
+        elif dur >= p.min_confirmed_s and _lift_confirmed(track, lo, hi, p, free):
+            runs.append((lo, hi, dur, "lift-confirmed contact"))
     marks = _mark_states(session, track, p, lead, ok)
     window_ns = p.mark_window_s * 1e9
     moments: dict[int, tuple[str, float, int | None]] = {}
-    for lo, hi, dur in runs:
+    for lo, hi, dur, how in runs:
         near = [m for m in marks
                 if clock[lo] - window_ns <= clock[m] <= clock[hi - 1] + window_ns]
         marks = [m for m in marks if m not in near]
         moments[near[0] if near else _best_in(track, lo, hi, ok)] = (
-            "grasp_mark" if near else "stable contact", dur, hi)
+            "grasp_mark" if near else how, dur, hi)
     for m in marks:
         moments[m] = ("grasp_mark", 0.0, None)
     if not moments:
         raise DemoError(f"{path}: no usable grasp: {_why_not(track, n_touch, ok, lead, p)}")
     return [_demo_at(session, track, i, hand, obj, how, dur, end)
             for i, (how, dur, end) in sorted(moments.items())]
+
+
+def _heights_m(track: _Track, key: str, lo: int, hi: int) -> np.ndarray:
+    """World z (metres) of ``key`` (``"palm_pos_m"``, ``"object_pos_m"``) in states [lo, hi)."""
+    return np.array([float(s[key][2]) for s in track.states[lo:hi]])
+
+
+def _lift_confirmed(track: _Track, lo: int, hi: int, p: DemoParams, free: bool) -> bool:
+    """Whether the hand lifted the grasp of the contact run [lo, hi) (:class:`DemoParams`).
+
+    Free object: within the run (the fingers still on it) the object rose ``lift_confirm_m``
+    above where it was at the run's start, and so did the palm — the hand carried it up, which
+    a push or a tumble does not do. Demonstration mode (the object is held fixed, so it cannot
+    rise): the palm rose ``lift_confirm_m`` within ``lift_window_s`` after the run's last
+    state — the operator lifting what they grasped."""
+    if free:
+        obj = _heights_m(track, "object_pos_m", lo, hi)
+        palm = _heights_m(track, "palm_pos_m", lo, hi)
+        rose = (obj - obj[0] >= p.lift_confirm_m) & (palm - palm[0] >= p.lift_confirm_m)
+        return bool(rose.any())
+    end = int(np.searchsorted(track.clock_ns, track.clock_ns[hi - 1] + p.lift_window_s * 1e9,
+                              side="right"))
+    palm = _heights_m(track, "palm_pos_m", lo, end)
+    return bool(palm[hi - lo - 1:].max() - palm[0] >= p.lift_confirm_m)
 
 
 #: events after which the scene is not the one before: a contact run never spans them
@@ -348,4 +389,5 @@ def _why_not(track: _Track, n_touch: np.ndarray, ok: np.ndarray, lead: str,
     longest = max((int(track.clock_ns[hi - 1]) - int(track.clock_ns[lo])) * 1e-9
                   for lo, hi in _runs(ok))
     return (f"the longest contact with >= {p.min_fingers} fingertips lasted {longest:.2f} s, "
-            f"less than {p.min_duration_s} s, and no grasp_mark event was usable")
+            f"less than {p.min_duration_s} s, the hand did not lift a shorter one "
+            f"({p.lift_confirm_m * 100:g} cm), and no grasp_mark event was usable")
