@@ -1,19 +1,37 @@
 # dexaug: `make demo` runs the main job on its embedded default, `make test` runs the tests.
 # Both create .venv and install the project on first use (a fresh clone needs nothing else).
+# `make demo` installs only the package and what it needs; `make test` adds the `dev` and `ray`
+# extras (pytest, ruff, playwright, a local Ray cluster). Both install the versions pinned in
+# constraints.txt (see its header to regenerate it).
 
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
-STAMP := $(VENV)/.installed
+CONSTRAINTS := constraints.txt
+PIP_INSTALL := $(BIN)/python -m pip install --quiet -c $(CONSTRAINTS)
+DEMO_STAMP := $(VENV)/.installed-demo
+TEST_STAMP := $(VENV)/.installed-test
 export MUJOCO_GL ?= egl
 
-.PHONY: demo test lint bench clean gl browser
+.PHONY: demo test test-load lint bench clean gl browser
 
-$(STAMP): pyproject.toml
+# The virtual environment itself (kept if it is already there), for both installs below.
+define make-venv
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[dev,ray]'
-	touch $(STAMP)
+endef
+
+# Base package only: what `dexaug demo` (and the benchmarks' scripts) need.
+$(DEMO_STAMP): pyproject.toml $(CONSTRAINTS)
+	$(make-venv)
+	$(PIP_INSTALL) -e .
+	touch $@
+
+# The package with the test tooling and Ray.
+$(TEST_STAMP): pyproject.toml $(CONSTRAINTS)
+	$(make-venv)
+	$(PIP_INSTALL) -e '.[dev,ray]'
+	touch $@
 
 # Offscreen rendering needs an EGL or OSMesa library; install Debian's when we may (root, apt).
 gl:
@@ -26,7 +44,7 @@ gl:
 # them when we may (root + apt-get; npm), else the tests skip saying why.
 IWER_VERSION := 2.5.0
 NODE_PREFIX := $(VENV)/node
-browser: $(STAMP)
+browser: $(TEST_STAMP)
 	@command -v chromium >/dev/null \
 	  || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null \
 	       && (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null) \
@@ -35,14 +53,21 @@ browser: $(STAMP)
 	  || { command -v npm >/dev/null && npm install --silent --no-audit --no-fund --prefix $(NODE_PREFIX) iwer@$(IWER_VERSION) >/dev/null \
 	       || echo "note: no npm or iwer@$(IWER_VERSION) not installable; browser tests will be skipped"; }
 
-demo: $(STAMP) gl
+demo: $(DEMO_STAMP) gl
 	$(BIN)/dexaug demo
 
-test: $(STAMP) gl browser
+test: $(TEST_STAMP) gl browser
 	$(BIN)/ruff check .
 	$(BIN)/python -m pytest -q
 
-bench: $(STAMP) gl
+# The timing-sensitive tests again with the other cores busy (scripts/under_load.sh).
+test-load: $(TEST_STAMP) gl
+	bash scripts/under_load.sh
+
+lint: $(TEST_STAMP)
+	$(BIN)/ruff check .
+
+bench: $(DEMO_STAMP) gl
 	$(BIN)/python benchmarks/bench_validate.py
 	$(BIN)/python benchmarks/bench_augment.py
 	$(BIN)/dexaug bench paper
