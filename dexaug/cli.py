@@ -1,12 +1,23 @@
 """``dexaug``: one command with subcommands for every stage of the pipeline.
 
 Libraries never print; this module turns their results into tables and progress bars, and every
-error into one line on stderr, never a traceback: a mistyped option is refused while the command
-line is parsed (argparse, exit status 2, before anything is loaded), dexaug's own errors
-(:class:`~sim.errors.DexaugError`) exit with status 2, a failing file or socket operation
-(``OSError``) and anything unforeseen with status 1 (``-v`` adds the traceback to the log), and
-Ctrl-C with 130. Messages are printed as plain text: a path or name holding ``[x]`` is shown as
-it is, not read as rich markup.
+error into one line on stderr, never a traceback. Exit statuses:
+
+- 0: done.
+- 1: a failing file or socket operation (``OSError``) or anything unforeseen (``-v`` adds the
+  traceback to the log), and ``augment`` / ``batch`` when an input or unit failed.
+- 2: a usage or input error: a mistyped option is refused while the command line is parsed
+  (argparse, before anything is loaded); dexaug's own errors (:class:`~sim.errors.DexaugError`:
+  a missing asset, a damaged session, an output folder that cannot be written, checked before
+  any work) are printed as one line naming the file or option and what was expected.
+- 3: the results were written but fell short: fewer than half of the grasps asked for
+  (``--n``; none at all included), see :data:`dexaug.commands.options.SHORT_SHARE`.
+- 130: Ctrl-C (143: SIGTERM).
+
+Logging: ``-v/--verbose`` (DEBUG), ``-q/--quiet`` (dexaug's own log from WARNING up) and
+``--log-level LEVEL`` are accepted before and after the subcommand (``dexaug -v generate …`` and
+``dexaug generate … -v`` are the same). Messages are printed as plain text: a path or name
+holding ``[x]`` is shown as it is, not read as rich markup.
 """
 
 from __future__ import annotations
@@ -22,11 +33,20 @@ from typing import NoReturn
 from rich.console import Console
 from rich.text import Text
 
+from dexaug.commands.guards import error_hint
+from dexaug.commands.options import logging_args
 from dexaug.commands.registry import COMMANDS
 from dexaug.commands.workers import stop_workers
 from sim.errors import DexaugError
 
 log = logging.getLogger("dexaug")
+
+#: ``dexaug --help``'s last lines (the module docstring says more)
+EXIT_STATUSES = ("exit status: 0 done; 1 a file or socket operation failed, an unforeseen error, "
+                 "or an input of augment/batch failed; 2 a usage or input error (one line naming "
+                 "the option or file; an output that cannot be written is refused before any "
+                 "work); 3 results written but fewer than half of --n grasps; 130 Ctrl-C. "
+                 "-v/-q/--log-level go before or after the subcommand.")
 
 #: the packages whose INFO log a command shows (without ``-v``)
 OWN_PACKAGES = ("dexaug", "sim", "augment", "teleop")
@@ -34,7 +54,7 @@ OWN_PACKAGES = ("dexaug", "sim", "augment", "teleop")
 #: the command modules, in the order ``dexaug --help`` lists their subcommands (the data flow:
 #: assets and validation, the demo, capture, augmentation, the dashboard)
 COMMAND_MODULES = tuple(f"dexaug.commands.{m}" for m in (
-    "assets", "validate", "demo", "workspace", "teleop", "repair", "generate", "augment", "batch",
+    "assets", "validate", "demo", "workspace", "teleop", "replay", "repair", "generate", "augment", "batch",
     "arm", "diagnose", "export", "stream", "ui", "view"))
 
 
@@ -94,9 +114,8 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     parser = OneLineParser(
         prog="dexaug", description="Teleoperation-to-dataset system for dexterous robot hands: "
         "capture and replay demonstrations, augment them into many grasps (AutoWS + FSG), and "
-        "validate every grasp in MuJoCo.")
-    parser.add_argument("-v", "--verbose", action="store_true", help="debug logging (and the "
-                        "traceback of an unforeseen error)")
+        "validate every grasp in MuJoCo.", epilog=EXIT_STATUSES)
+    logging_args(parser, top=True)
     parser.add_argument("--version", action=_PrintVersion, nargs=0,
                         help="print dexaug's version and those of the packages results depend on")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -104,16 +123,28 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
         doc = (fn.__doc__ or "").strip()
         p = sub.add_parser(name, help=doc.splitlines()[0] if doc else None, description=doc,
                            formatter_class=HelpFormatter)
+        logging_args(p)   # -v, -q, --log-level after the subcommand too
         if only in (None, name):
             setup(p)
         p.set_defaults(handler=fn)
     return parser
 
 
+#: ``dexaug``'s own options that take a value (as a separate word): skipped when looking for the
+#: subcommand's name
+_VALUE_OPTIONS = ("--log-level",)
+
+
 def _command_name(argv: list[str]) -> str | None:
-    """The subcommand named in ``argv``: the first word that is not an option (``dexaug`` has
-    only flag options of its own), or None."""
-    return next((a for a in argv if not a.startswith("-")), None)
+    """The subcommand named in ``argv``: the first word that is neither an option of
+    ``dexaug`` nor the value of one (``--log-level LEVEL``), or None."""
+    words = iter(argv)
+    for a in words:
+        if a in _VALUE_OPTIONS:
+            next(words, None)
+        elif not a.startswith("-"):
+            return a
+    return None
 
 
 def _exit_on_sigterm() -> None:
@@ -123,18 +154,29 @@ def _exit_on_sigterm() -> None:
         signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
 
 
-def _configure_logging(verbose: bool) -> None:
-    """dexaug's own log at INFO (DEBUG with ``-v``); other libraries' only from WARNING up
-    unless ``-v`` (their INFO lines, e.g. PyOpenGL's "No OpenGL_accelerate module loaded",
-    say nothing to a user and would bury a command's one-line error). Logging configured by
-    the program that calls :func:`main` (a test runner) is left as it is."""
+def log_level(args: argparse.Namespace) -> int:
+    """The level of dexaug's own log: ``--log-level`` when given, else DEBUG with ``-v``,
+    WARNING with ``-q``, INFO by default."""
+    if getattr(args, "log_level", None):
+        return logging.getLevelName(args.log_level)
+    if getattr(args, "verbose", False):
+        return logging.DEBUG
+    return logging.WARNING if getattr(args, "quiet", False) else logging.INFO
+
+
+def _configure_logging(level: int) -> None:
+    """dexaug's own log from ``level`` up (:func:`log_level`); other libraries' only from
+    WARNING up unless ``level`` is DEBUG (their INFO lines, e.g. PyOpenGL's "No
+    OpenGL_accelerate module loaded", say nothing to a user and would bury a command's one-line
+    error). Logging configured by the program that calls :func:`main` (a test runner) is left
+    as it is."""
     if logging.getLogger().handlers:
         return
-    logging.basicConfig(level=logging.DEBUG if verbose else logging.WARNING,
+    logging.basicConfig(level=logging.DEBUG if level <= logging.DEBUG else logging.WARNING,
                         format="%(levelname)s %(name)s: %(message)s")
-    if not verbose:
+    if level > logging.DEBUG:
         for package in OWN_PACKAGES:
-            logging.getLogger(package).setLevel(logging.INFO)
+            logging.getLogger(package).setLevel(level)
 
 
 def print_error(message: str) -> None:
@@ -150,11 +192,12 @@ def main(argv: list[str] | None = None) -> int:
     _exit_on_sigterm()
     # markup off: paths, names and messages print as they are; styled output uses rich Text
     console = Console(width=None if sys.stdout.isatty() else 160, markup=False)
-    _configure_logging(args.verbose)
+    level = log_level(args)
+    _configure_logging(level)
     try:
         return args.handler(args, console)
     except DexaugError as exc:
-        print_error(str(exc))
+        print_error(error_hint(str(exc)))
         return 2
     except OSError as exc:    # a file or socket operation failed: the message names it
         print_error(str(exc))
@@ -168,7 +211,7 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as exc:  # unforeseen: still one line for the user, the traceback with -v
         log.debug("traceback of the error below", exc_info=True)
         print_error(f"{type(exc).__name__}: {exc}"
-                    + ("" if args.verbose else " (run with -v for the traceback)"))
+                    + ("" if level <= logging.DEBUG else " (run with -v for the traceback)"))
         return 1
 
 

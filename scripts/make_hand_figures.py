@@ -12,7 +12,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from augment.autows.build import build_workspace
@@ -22,6 +21,7 @@ from dexaug.pipeline.run import generate_grasps
 from sim.hand.config import default_hand_name, hand_names
 from sim.hand.model import Hand
 from sim.validate.batch import cached_validator, validate_many
+from sim.world.drawing import Canvas
 from sim.world.objects import load_object
 from sim.world.render import save_png
 
@@ -49,9 +49,9 @@ def _tile(hand: Hand, obj: str, grasps: list, label: str) -> np.ndarray:
 
 
 def _label(img: np.ndarray, lines: list[str]) -> np.ndarray:
-    for i, text in enumerate(lines):
-        cv2.putText(img, text, (8, 20 + 18 * i), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (20, 20, 20), 1,
-                    cv2.LINE_AA)
+    with Canvas(img) as canvas:
+        for i, text in enumerate(lines):
+            canvas.text((8, 20 + 18 * i), text, (20, 20, 20), size_px=14)
     return img
 
 

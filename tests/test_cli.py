@@ -100,10 +100,11 @@ def test_validate_render_writes_png(tmp_path: Path) -> None:
                            "004_sugar_box", "--protocol", "lift-drop", "--render", str(tmp_path)],
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
-    import cv2
+    import numpy as np
+    from PIL import Image
 
-    image = cv2.imread(str(tmp_path / "box_edge_wrap.png"))
-    assert image is not None and image.shape == (480, 640, 3)
+    image = np.asarray(Image.open(tmp_path / "box_edge_wrap.png").convert("RGB"))
+    assert image.shape == (480, 640, 3)
     assert image.std() > 10  # not a blank frame
 
 
@@ -133,7 +134,7 @@ def test_generate_writes_and_appends_a_dataset(tmp_path: Path, capsys) -> None:
     err = capsys.readouterr().err
     assert "already holds 6 grasps" in err and "--append" in err and len(err.strip().splitlines()) == 1
     assert main([*args, "--append", "--seed", "1", "--n", "100000", "--budget", "2",
-                 "--validate", "none"]) == 0
+                 "--validate", "none"]) == 3   # written, but fewer than half of --n
     text = capsys.readouterr().out
     assert "shortfall" in text and "time budget" in text
     t2 = dataset.load(out)["062_dice"]

@@ -123,11 +123,12 @@ def _open(chromium, path: Path, console: list[str], size=(1200, 760)):  # type: 
 
 
 def _canvas_pixels(page) -> np.ndarray:  # type: ignore[no-untyped-def]
-    import cv2
+    import io
+
+    from PIL import Image
 
     png = page.locator("#view").screenshot()
-    return cv2.cvtColor(cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR),
-                        cv2.COLOR_BGR2RGB)
+    return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"))
 
 
 def test_the_viewer_page_draws_filters_and_poses_the_grasps(chromium, shadow,

@@ -9,7 +9,6 @@ import math
 from collections.abc import Callable
 from pathlib import Path
 
-import cv2
 import mujoco
 import numpy as np
 from numpy.typing import ArrayLike
@@ -18,6 +17,7 @@ from augment.autows.cloud import WorkspaceCloud
 from augment.autows.params import WorkspaceError
 from sim.hand.model import Hand
 from sim.transforms import quat_to_mat
+from sim.world.drawing import Canvas
 
 __all__ = ["free_camera_projection", "render_workspace_png"]
 
@@ -32,7 +32,8 @@ def free_camera_projection(model: mujoco.MjModel, data: mujoco.MjData, lookat: A
     """World → pixel projection of the free camera that :func:`sim.world.render.render_scene` uses,
     read back from ``mjv_updateScene`` (no GL needed). Returns ``project(points (N,3)) ->
     (uv (N,2), depth (N,))``: pixel coordinates with (0, 0) at the centre of the top-left pixel
-    (OpenCV's convention), and the depth along the view direction in metres (> 0 in front)."""
+    (as :mod:`sim.world.drawing` draws), and the depth along the view direction in metres (> 0
+    in front)."""
     cam = mujoco.MjvCamera()
     cam.type = mujoco.mjtCamera.mjCAMERA_FREE
     cam.lookat[:] = lookat
@@ -116,20 +117,21 @@ def render_workspace_png(hand: Hand, cloud: WorkspaceCloud, path: Path | str | N
                                      height)
     img = np.ascontiguousarray(rgb)
     rng = np.random.default_rng(0)
-    for i, f in enumerate(cloud.fingers):
-        colour = _COLOURS_RGB[i % len(_COLOURS_RGB)]
-        dim = tuple(int(0.55 * c) for c in colour)
-        if f.n_points and skeletons_per_finger > 0:
-            pick = rng.choice(f.n_points, min(skeletons_per_finger, f.n_points), replace=False)
-            for s in f.skeleton[pick]:
-                uv, _ = project(to_world(s))
-                cv2.polylines(img, [np.round(uv).astype(np.int32)], False, dim, 1, cv2.LINE_AA)
-        if f.n_points:
-            uv, depth = project(to_world(f.positions))
-            for u, v in np.round(uv[depth > 0]).astype(int):
-                cv2.circle(img, (int(u), int(v)), point_radius_px, colour, -1, cv2.LINE_AA)
-        cv2.putText(img, f"{f.name}: {f.n_points} pts, {f.n_faces} faces", (12, 26 + 24 * i),
-                    cv2.FONT_HERSHEY_SIMPLEX, 0.6, colour, 2, cv2.LINE_AA)
+    with Canvas(img) as canvas:
+        for i, f in enumerate(cloud.fingers):
+            colour = _COLOURS_RGB[i % len(_COLOURS_RGB)]
+            dim = tuple(int(0.55 * c) for c in colour)
+            if f.n_points and skeletons_per_finger > 0:
+                pick = rng.choice(f.n_points, min(skeletons_per_finger, f.n_points), replace=False)
+                for s in f.skeleton[pick]:
+                    uv, _ = project(to_world(s))
+                    canvas.polyline(np.round(uv), dim)
+            if f.n_points:
+                uv, depth = project(to_world(f.positions))
+                for u, v in np.round(uv[depth > 0]):
+                    canvas.disk((u, v), point_radius_px, colour)
+            canvas.text((12, 26 + 24 * i), f"{f.name}: {f.n_points} pts, {f.n_faces} faces", colour,
+                        size_px=19, bold=True)
     if path is not None:
         save_png(path, img)
     return img

@@ -198,6 +198,7 @@ def _write_folder(out: Path, files: Mapping[str, dict[str, Any]], manifest: dict
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.{os.getpid()}.", suffix=".tmp",
                                 dir=out.parent))
     try:
+        tmp.chmod(_new_folder_mode())   # mkdtemp's 0700 would make the export private
         for rel, data in files.items():
             (tmp / rel).parent.mkdir(parents=True, exist_ok=True)
             np.save(tmp / rel, np.array(data, dtype=object), allow_pickle=True)
@@ -212,6 +213,15 @@ def _write_folder(out: Path, files: Mapping[str, dict[str, Any]], manifest: dict
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+
+
+def _new_folder_mode() -> int:
+    """The mode a new folder gets here (0777 less the process umask): the export is renamed
+    into place from a private temporary folder and must end up like any folder ``mkdir``
+    makes."""
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o777 & ~umask
 
 
 def read_bodex(out: Path | str) -> list[dict[str, Any]]:

@@ -13,6 +13,7 @@ from rich.console import Console
 from rich.table import Table
 
 from dexaug.commands.argtypes import count
+from dexaug.commands.guards import dataset_file, require_writable
 from dexaug.commands.registry import command
 from dexaug.commands.running import progress_bars, stage_ticker
 
@@ -24,8 +25,8 @@ def _arm_args(p: argparse.ArgumentParser) -> None:
     from sim.arm.config import arm_names
     from sim.validate.batch import default_workers
 
-    p.add_argument("dataset", type=Path, help="a grasps.h5 written by augment/generate (its "
-                   "passing grasps are used)")
+    p.add_argument("dataset", type=dataset_file, help="a grasps.h5 written by augment/generate "
+                   "(its passing grasps are used)")
     p.add_argument("--arm", choices=arm_names(), default="ur5e",
                    help="arm config (configs/arms/<arm>/); default %(default)s")
     p.add_argument("--placements", type=count, default=20,
@@ -68,6 +69,9 @@ def arm_cmd(args: argparse.Namespace, console: Console) -> int:
     """
     from dexaug.pipeline.arm_run import run_arm
 
+    require_writable(args.out, "--out")
+    if args.report is not None:
+        require_writable(args.report, "--report")
     with progress_bars(console) as bar:
         tick = stage_ticker(bar)
         summaries = run_arm(args.dataset, args.arm, args.out, placements=args.placements,

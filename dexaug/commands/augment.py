@@ -18,9 +18,12 @@ from typing import TYPE_CHECKING
 from rich.console import Console
 
 from dexaug.commands.argtypes import count, int_at_least, positive
+from dexaug.commands.guards import error_hint, object_name, require_writable
 from dexaug.commands.options import (
+    SHORT_STATUS,
     budget_arg,
     generation_args,
+    warn_if_unreachable,
     workers_arg,
 )
 from dexaug.commands.registry import command
@@ -28,10 +31,12 @@ from dexaug.commands.running import (
     arm_args,
     arm_placements,
     arm_table,
+    fsg_rejections,
     progress_bars,
     put_on_arm,
     ray_args,
     ray_options,
+    report_shortfalls,
     run_units,
     stage_ticker,
     summary_table,
@@ -70,7 +75,9 @@ def augment_cmd(args: argparse.Namespace, console: Console) -> int:
     output folder gets grasps.h5 (validated grasps, rejected ones in a side table),
     report.html and summary.json. Re-running skips finished demos; --watch DIR augments new
     sessions as they are recorded. A session without a usable grasp, object or hand is
-    reported with the reason and the others go on (exit status 1 if any failed). --ray runs
+    reported with the reason and the others go on (exit status 1 if any failed; else 3 if a
+    demo's FSG made fewer than half of --n grasps, e.g. none: "FSG found no grasp for this
+    demo: WHY", its dataset, report and summary still written). --ray runs
     the demos on a Ray cluster instead of the local process pool (see dexaug batch for many
     sessions and objects at once). --arm ARM then puts each demo's passing grasps on that arm
     at a table (as dexaug arm does) into arm_<ARM>.h5 beside them.
@@ -83,22 +90,26 @@ def augment_cmd(args: argparse.Namespace, console: Console) -> int:
     if not args.inputs and not args.watch:
         raise UsageError("give sessions to augment or --watch DIR")
     arm_placements(args)          # --arm-placements without --arm: refused before any work
+    require_writable(args.out, "--out", folder=True)
     opts = ray_options(args)
-    failed = 0
+    warn_if_unreachable(console, opts.n, opts.time_budget_s, opts.workers)
+    failed = short = 0
     rows, arm_rows = [], []
     with contextlib.ExitStack() as stack, progress_bars(console) as bar:
+        counts = stack.enter_context(fsg_rejections())
         if args.ray is not None:
             stack.enter_context(ray_cluster(args.ray, num_cpus=args.ray_cpus))
 
         def augment(path: Path) -> list[DemoSummary]:
             """``path``'s demos augmented (a line each); a failure is printed and counted."""
-            nonlocal failed
+            nonlocal failed, short
             if args.ray is not None:
                 units, errors = gather_units([path], opts)
                 for text in errors:
-                    console.print(text, style="red", highlight=False)
+                    console.print(error_hint(text), style="red", highlight=False)
                 done, bad = run_units(units, args, console, bar)
                 failed += len(errors) + bad
+                short += report_shortfalls(console, done, counts, opts.time_budget_s)
                 return done
             tick = stage_ticker(bar)
             try:
@@ -111,12 +122,13 @@ def augment_cmd(args: argparse.Namespace, console: Console) -> int:
             except (DemoError, DexaugError) as exc:
                 failed += 1
                 text = str(exc) if str(path) in str(exc) else f"{path}: {exc}"
-                console.print(text, style="red", highlight=False)
+                console.print(error_hint(text), style="red", highlight=False)
                 return []
             for s in summaries:
                 state = "skipped (done)" if s.skipped else "done"
                 console.print(f"{s.demo_id}: {s.passed}/{s.generated} passed, {state}; "
                               f"report {s.report}")
+            short += report_shortfalls(console, summaries, counts, opts.time_budget_s)
             return summaries
 
         def one(path: Path) -> None:
@@ -133,7 +145,7 @@ def augment_cmd(args: argparse.Namespace, console: Console) -> int:
             _watch(args.watch, args.poll, one, console)
     summary_table(console, rows)
     arm_table(console, arm_rows)
-    return 1 if failed else 0
+    return 1 if failed else SHORT_STATUS if short else 0
 
 
 def _watch(folder: Path, poll_s: float, handle: Callable[[Path], None],
@@ -173,7 +185,7 @@ def _rerecord_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("src", type=Path, help="a session with raw /hands input (e.g. from synth)")
     p.add_argument("out", type=Path, help="the full session to write")
     p.add_argument("--hand", help="hand config (default: the session's)")
-    p.add_argument("--object", help="object (default: the session's)")
+    p.add_argument("--object", type=object_name, help="object (default: the session's)")
     p.add_argument("--object-mode", choices=("demo", "free"),
                    help="demo: the object settles on the table and is held while the hand "
                    "grasps; free: it can be lifted (default: the session's; free for a session "
@@ -190,6 +202,7 @@ def rerecord_cmd(args: argparse.Namespace, console: Console) -> int:
     """
     from teleop.bridge.rerecord import rerecord
 
+    require_writable(args.out, "OUT")
     out = rerecord(args.src, args.out, hand=args.hand, object_name=args.object,
                    object_mode=args.object_mode)
     console.print(f"wrote {out}")
@@ -202,7 +215,7 @@ def _bench_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("suite", choices=("paper",), help="paper: the reference paper's Tables 2, 3")
     p.add_argument("--n", type=count, default=20, help="grasps requested per row")
     budget_arg(p, 30.0, per=" of each row")
-    p.add_argument("--objects", nargs="*", default=list(OBJECTS),
+    p.add_argument("--objects", nargs="*", default=list(OBJECTS), type=object_name,
                    help=f"objects (default: the paper's {', '.join(OBJECTS)})")
     p.add_argument("--methods", nargs="*", default=list(VARIANTS), choices=list(VARIANTS),
                    help="the paper's method variants (default: all)")
@@ -227,6 +240,8 @@ def bench_cmd(args: argparse.Namespace, console: Console) -> int:
     from sim.io import write_bytes_atomic
     from sim.validate.batch import default_workers
 
+    if args.out:
+        require_writable(args.out, "--out")
     rows_total = len(args.objects) * len(args.methods) * len(args.workspaces)
     with progress_bars(console) as bar:
         task = bar.add_task("rows", total=rows_total)

@@ -17,7 +17,8 @@ from pathlib import Path
 from rich.console import Console
 
 from dexaug.commands.argtypes import count
-from dexaug.commands.options import hand_arg, workers_arg
+from dexaug.commands.guards import object_name, require_writable
+from dexaug.commands.options import DEFAULT_GRASPS, hand_arg, logging_args, n_help, workers_arg
 from dexaug.commands.registry import Handler, Setup, command
 
 #: ``dexaug demo ACTION``: action name → (argument setup, handler), in registration order
@@ -43,13 +44,17 @@ def _demo_args(p: argparse.ArgumentParser) -> None:
                    help="the demonstration session to augment (default: the committed Shadow "
                    "Hand grasp of the tomato soup can)")
     p.add_argument("--out", type=Path, default=Path("datasets"),
-                   help="output folder; default %(default)s")
-    p.add_argument("--n", type=count, default=100, help="grasps to generate; default %(default)s")
+                   help="output folder; default %(default)s. A result of an earlier run there is "
+                   "kept: this run then writes to the next free DIR-2, DIR-3, … and says so")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the earlier run's result in --out instead")
+    p.add_argument("--n", type=count, default=DEFAULT_GRASPS, help=n_help("grasps to generate"))
     actions = p.add_subparsers(dest="action", metavar="ACTION", title="actions (none: the main job)")
     for name, (setup, fn) in ACTIONS.items():
         doc = (fn.__doc__ or "").strip()
         sub = actions.add_parser(name, help=doc.splitlines()[0] if doc else None, description=doc,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
+        logging_args(sub)
         setup(sub)
         sub.set_defaults(handler=fn)
 
@@ -66,10 +71,15 @@ def demo(args: argparse.Namespace, console: Console) -> int:
        printed. Without the YCB objects, a scripted demonstration on a procedural cylinder is
        recorded first and augmented instead.
 
+    A second run never replaces the first's result silently: it writes to the next free
+    sibling of --out (datasets-2, …) and prints which, unless --overwrite. Exit status 3: the
+    augmentation made fewer than half of --n grasps.
+
     Actions on demos: `dexaug demo ACTION --help` (import: a static grasp pose file → demo).
     """
     import tempfile
 
+    from dexaug.commands.options import SHORT_STATUS, fell_short
     from dexaug.commands.running import progress_bars, stage_ticker
     from dexaug.pipeline.options import AugmentOptions
     from dexaug.pipeline.run import augment_session
@@ -79,17 +89,22 @@ def demo(args: argparse.Namespace, console: Console) -> int:
     from teleop.bridge.rerecord import rerecord
     from teleop.record.session import open_session
 
-    args.out.mkdir(parents=True, exist_ok=True)
+    require_writable(args.out, "--out", folder=True)
     session = args.session
     raw = sorted((REPO_ROOT / "recordings").glob("synth_*.mcap"))
     try:   # the committed sessions hold YCB objects: are they installed here?
         for path in (session, *raw[:1]):
             load_object(open_session(path).metadata.get("object", ""))
+        procedural = None
     except DexaugError as exc:
-        console.print(f"{exc}\n→ recording a scripted demonstration on a procedural cylinder "
-                      "instead", style="yellow", highlight=False)
-        session = _procedural_demo_session(args.out / "demo_cylinder.mcap")
+        procedural = exc
         raw = []
+    out = _result_root(args.out, None if procedural else session, args.overwrite, console)
+    out.mkdir(parents=True, exist_ok=True)
+    if procedural is not None:
+        console.print(f"{procedural}\n→ recording a scripted demonstration on a procedural "
+                      "cylinder instead", style="yellow", highlight=False)
+        session = _procedural_demo_session(out / PROCEDURAL_SESSION)
     if raw:
         with tempfile.TemporaryDirectory() as tmp:
             start = time.perf_counter()
@@ -102,14 +117,49 @@ def demo(args: argparse.Namespace, console: Console) -> int:
     opts = AugmentOptions(n=args.n, time_budget_s=90.0, gallery=4)
     start = time.perf_counter()
     with progress_bars(console) as bar:
-        summaries = augment_session(session, args.out, opts, progress=stage_ticker(bar),
+        summaries = augment_session(session, out, opts, progress=stage_ticker(bar),
                                     force=True)
     for s in summaries:
         console.print(f"demo {s.demo_id}: {s.generated} grasps generated, {s.passed} passed "
                       f"lift-drop in {time.perf_counter() - start:.1f} s")
         console.print(f"dataset: {s.dataset}")
         console.print(f"report:  {s.report}")
-    return 0
+    return SHORT_STATUS if any(fell_short(s.requested, s.generated) for s in summaries) else 0
+
+
+#: the scripted demonstration's session, in the output folder (no YCB objects installed)
+PROCEDURAL_SESSION = "demo_cylinder.mcap"
+
+
+def _result_root(out: Path, session: Path | None, overwrite: bool, console: Console) -> Path:
+    """Where this run writes: ``out``, unless an earlier run's result is there (the result
+    folder of one of ``session``'s demos, or without ``session`` the procedural session) and
+    ``overwrite`` is off: then the first of ``out-2``, ``out-3``, … that holds none, said in
+    one line."""
+    from dexaug.pipeline.options import demo_dir
+    from teleop.record import demos as extraction
+
+    demos = extraction.extract_demos(session) if session is not None else []
+
+    def taken(root: Path) -> Path | None:
+        marks = ([demo_dir(root, d) for d in demos] if session is not None
+                 else [root / PROCEDURAL_SESSION])
+        return next((m for m in marks if m.exists()), None)
+
+    earlier = taken(out)
+    if earlier is None or overwrite:
+        if earlier is not None:
+            console.print(f"--overwrite: replacing the earlier result {earlier}",
+                          highlight=False, soft_wrap=True)
+        return out
+    k = 2
+    while taken(new := out.with_name(f"{out.name}-{k}")) is not None:
+        k += 1
+    require_writable(new, "--out", folder=True)
+    console.print(f"{earlier} holds an earlier run's result, kept: this run writes to {new}/ "
+                  "(--overwrite replaces the earlier one)", style="yellow", highlight=False,
+                  soft_wrap=True)
+    return new
 
 
 def _procedural_demo_session(out: Path) -> Path:
@@ -182,7 +232,8 @@ def demo_import(args: argparse.Namespace, console: Console) -> int:
 
 def _script_args(p: argparse.ArgumentParser) -> None:
     hand_arg(p)
-    p.add_argument("--object", required=True, help="object to demonstrate (YCB id or primitive)")
+    p.add_argument("--object", required=True, type=object_name,
+                   help="object to demonstrate (YCB id or primitive)")
     p.add_argument("--out", type=Path, required=True, metavar="DIR",
                    help="folder for demo_<object>.mcap and demos/<object>.json")
     p.add_argument("--candidates", type=count, default=60,
@@ -207,6 +258,7 @@ def demo_script(args: argparse.Namespace, console: Console) -> int:
     from sim.hand.model import Hand
     from sim.validate.batch import default_workers
 
+    require_writable(args.out, "--out", folder=True)
     made = script_demo(Hand.load(args.hand), args.object, args.out, candidates=args.candidates,
                        tries=args.tries, trial=args.trial,
                        workers=args.workers or default_workers())

@@ -18,6 +18,7 @@ from rich.table import Table
 from rich.text import Text
 
 from dexaug.commands.argtypes import int_at_least
+from dexaug.commands.guards import dataset_file, did_you_mean, require_writable
 from dexaug.commands.registry import command
 from sim.errors import DexaugError
 
@@ -25,7 +26,7 @@ __all__ = ["diagnose", "diagnose_dataset"]
 
 
 def _diagnose_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("dataset", type=Path, help="a grasps.h5 written by augment/generate")
+    p.add_argument("dataset", type=dataset_file, help="a grasps.h5 written by augment/generate")
     p.add_argument("--object", help="only this object's table (default: every object in the file)")
     p.add_argument("--n", type=int_at_least(1), default=20,
                    help="failing grasps replayed per object (from the rejected table); "
@@ -115,7 +116,8 @@ def diagnose_dataset(path: Path, console: Console, *, object_name: str | None = 
     tables = dataset.load(path)
     if object_name is not None:
         if object_name not in tables:
-            raise DexaugError(f"{path}: no object {object_name!r}; it holds {sorted(tables)}")
+            raise DexaugError(f"{path}: no object {object_name!r}; it holds {sorted(tables)}"
+                              f"{did_you_mean(object_name, tables)}")
         tables = {object_name: tables[object_name]}
     report: dict[str, Any] = {}
     for name, table in tables.items():
@@ -165,5 +167,7 @@ def diagnose(args: argparse.Namespace, console: Console) -> int:
     object most): its palm-frame axis, the grip left at its end, the J1/J2 splits it moved. The
     replay is the validator's own run, so the verdicts are the dataset's.
     """
+    if args.json is not None:
+        require_writable(args.json, "--json")
     return diagnose_dataset(args.dataset, console, object_name=args.object, n=args.n,
                             passing=args.passing, json_path=args.json, protocol=args.protocol)

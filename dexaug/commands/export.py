@@ -13,6 +13,7 @@ from rich.console import Console
 from rich.text import Text
 
 from augment.export import FORMATS
+from dexaug.commands.guards import dataset_file, did_you_mean, require_writable
 from dexaug.commands.registry import command
 from sim.errors import DexaugError, UsageError
 
@@ -25,14 +26,15 @@ FSG_KEYFRAMES = ("handdata", "fsg_keyframes")
 def _export_args(p: argparse.ArgumentParser) -> None:
     from sim.validate.config import SQUEEZE_CONVENTIONS
 
-    p.add_argument("dataset", type=Path, help="a grasps.h5 written by augment/generate")
+    p.add_argument("dataset", type=dataset_file, help="a grasps.h5 written by augment/generate")
     p.add_argument("--format", choices=FORMATS, required=True,
                    help="dexgraspbench: one JSON line per grasp in the DexGraspBench reference "
                         "layout (palm body pose in the world, joints by name, pregrasp/squeeze); "
                         "npz: every column of every table, for numpy.load; fsg: the FSG authors' "
                         "HDF5 (rh_palm pose in the object frame, their 22 joints, gws (N,1), "
                         "float32); bodex: a folder of DexGraspBench per-grasp .npy files "
-                        "(pregrasp/grasp/squeeze qpos of its floating Shadow Hand, object pose)")
+                        "(pregrasp/grasp/squeeze qpos of its floating Shadow Hand, object pose), "
+                        "with the usual permissions (0777 less the umask)")
     p.add_argument("--out", type=Path, required=True,
                    help="file to write (replaced atomically); for bodex a folder (replaced "
                         "whole, only if it is empty or an earlier bodex export)")
@@ -70,7 +72,8 @@ def _tables(path: Path, name: str | None, rejected: bool) -> dict:
     tables = load(path)
     if name is not None:
         if name not in tables:
-            raise DexaugError(f"{path}: no object {name!r} (has {sorted(tables)})")
+            raise DexaugError(f"{path}: no object {name!r} (has {sorted(tables)})"
+                              f"{did_you_mean(name, tables)}")
         tables = {name: tables[name]}
     return {k: with_rejected(t) for k, t in tables.items()} if rejected else tables
 
@@ -147,6 +150,7 @@ def export(args: argparse.Namespace, console: Console) -> int:
     from augment import export as ex
 
     _refuse_options(args)
+    require_writable(args.out, "--out", folder=args.format == "bodex")
     tables = _tables(args.dataset, args.object, args.rejected)
     source = str(args.dataset)
     note = ""

@@ -18,10 +18,14 @@ from rich.console import Console
 from rich.markup import escape
 
 from dexaug.commands.argtypes import int_at_least
+from dexaug.commands.guards import object_name, require_new_or_dataset, require_writable
 from dexaug.commands.options import (
+    SHORT_STATUS,
     backend_of,
+    fell_short,
     generation_args,
     hand_arg,
+    warn_if_unreachable,
 )
 from dexaug.commands.registry import command
 from dexaug.commands.running import (
@@ -43,7 +47,8 @@ log = logging.getLogger(__name__)
 
 def _generate_args(p: argparse.ArgumentParser) -> None:
     hand_arg(p)
-    p.add_argument("--object", required=True, help="object name (YCB id/name or primitive)")
+    p.add_argument("--object", required=True, type=object_name,
+                   help="object name (YCB id/name or primitive)")
     p.add_argument("--demo", help="centre the workspace on a demonstration: a demo .json, a "
                    "session .mcap, or a reference grasp name")
     p.add_argument("--fingers", type=int_at_least(2),
@@ -73,7 +78,9 @@ def generate_cmd(args: argparse.Namespace, console: Console) -> int:
     --budget) is reported, never a hang. --mode power makes whole-hand grasps instead
     (augment.power: palm on the object, every finger closed onto it in simulation); --mode
     auto makes fingertip grasps and, when fewer than [power] auto_below of them pass, power
-    grasps too, both in the same table (attribute ``modes_run``).
+    grasps too, both in the same table (attribute ``modes_run``). Exit status 3: the dataset
+    was written with fewer than half of --n grasps; 2: an input or --out that cannot be used
+    (checked before any work).
     """
     from augment import dataset
     from augment.power import load_power_params
@@ -85,12 +92,15 @@ def generate_cmd(args: argparse.Namespace, console: Console) -> int:
     if args.mode == "power" and (args.demo or args.fingers or args.table is not None):
         raise UsageError("--mode power places the whole hand: it takes no --demo, --fingers or "
                          "--table")
+    require_writable(args.out, "--out")
+    require_new_or_dataset(args.out, "--out")
+    workers = args.workers or default_workers()
+    warn_if_unreachable(console, args.n, args.budget, workers)
     if not args.append and (held := dataset.existing_rows(args.out)):
         raise DexaugError(f"{args.out} already holds {held} grasps: pass --append to add to it, "
                           f"or choose another --out")
     hand = Hand.load(args.hand)
     obj = load_object(args.object)
-    workers = args.workers or default_workers()
     backend = backend_of(args)
     demo = resolve_demo(args.demo, hand.name) if args.demo else None
     if demo is not None and demo.object != obj.name:
@@ -123,6 +133,10 @@ def generate_cmd(args: argparse.Namespace, console: Console) -> int:
     for mode, res, res_results in runs:
         _report_run(console, args, mode, res, res_results)
     console.print(f"wrote {args.out}")
+    if fell_short(args.n, len(grasps)):
+        console.print(f"fell short: {len(grasps)} of --n {args.n} grasps, fewer than half "
+                      f"(exit status {SHORT_STATUS})", style="yellow")
+        return SHORT_STATUS
     return 0
 
 

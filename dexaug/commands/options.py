@@ -1,21 +1,65 @@
 """Argument builders shared by several subcommands, so a flag means the same everywhere.
 
-``--hand`` (default: ``configs/hands/default.toml``), the grasp-generation options of
-``generate``, ``augment`` and ``ui``, and the ``AugmentOptions`` those options stand for.
+``--hand`` (default: ``configs/hands/default.toml``), the logging options of every command, the
+grasp-generation options of ``generate``, ``augment``, ``batch`` and ``ui``, and the
+``AugmentOptions`` those options stand for; with them, the one default number of grasps
+(:data:`DEFAULT_GRASPS`) and what counts as a run that fell short (:data:`SHORT_SHARE`, exit
+status :data:`SHORT_STATUS`), warned about before the search when ``--n`` cannot be reached
+within ``--budget`` (:func:`warn_if_unreachable`).
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 from typing import TYPE_CHECKING
 
 from dexaug.commands.argtypes import count, positive
 from sim.errors import UsageError
 
 if TYPE_CHECKING:
+    from rich.console import Console
+
     from dexaug.pipeline.options import AugmentOptions
 
-__all__ = ["augment_options", "backend_of", "budget_arg", "generation_args", "hand_arg", "workers_arg"]
+__all__ = ["DEFAULT_GRASPS", "FSG_MAX_GRASPS_PER_S", "SHORT_SHARE", "SHORT_STATUS",
+           "augment_options", "backend_of", "budget_arg", "fell_short", "generation_args",
+           "hand_arg", "logging_args", "warn_if_unreachable", "workers_arg"]
+
+#: grasps asked for per demo / object when ``--n`` is not given, by every command that makes
+#: grasps (generate, augment, batch, ui, demo, bridge --augment-n): the same number everywhere,
+#: so a result made from the dashboard and one made on the command line are the same run
+DEFAULT_GRASPS = 200
+
+#: a run that returns fewer than this share of ``--n`` grasps (e.g. stopped by ``--budget``)
+#: exits with :data:`SHORT_STATUS` after writing what it made: a shortfall of a few grasps is
+#: normal for a hard object, one of more than half means the request could not be met
+SHORT_SHARE = 0.5
+#: the exit status of a run that fell short (0: done, 1: failed, 2: usage or input error)
+SHORT_STATUS = 3
+
+#: FSG's ceiling, grasps per second per worker process, for the warning before a search whose
+#: ``--n`` no budget can meet: about 3x the fastest rate measured (5,000 grasps of 005 in 82 s on
+#: 2 workers, 30 per second each: README, cost curves), so that only a request that is out of
+#: reach on any machine is warned about
+FSG_MAX_GRASPS_PER_S = 100.0
+
+_LOG_LEVELS = ("DEBUG", "INFO", "WARNING", "ERROR")
+
+
+def logging_args(p: argparse.ArgumentParser, *, top: bool = False) -> None:
+    """``-v/--verbose``, ``-q/--quiet``, ``--log-level LEVEL`` (see :func:`dexaug.cli.log_level`).
+    ``top``: the options of ``dexaug`` itself, with their defaults; on a subcommand they
+    default to nothing (``argparse.SUPPRESS``), so that the same option given before the
+    subcommand is not reset by the subcommand's default."""
+    default = (lambda value: value) if top else (lambda value: argparse.SUPPRESS)
+    p.add_argument("-v", "--verbose", action="store_true", default=default(False),
+                   help="debug logging (and the traceback of an unforeseen error)")
+    p.add_argument("-q", "--quiet", action="store_true", default=default(False),
+                   help="dexaug's own log only from WARNING up")
+    p.add_argument("--log-level", type=str.upper, choices=_LOG_LEVELS, default=default(None),
+                   metavar="LEVEL", help="level of dexaug's own log: DEBUG, INFO, WARNING or "
+                   "ERROR (wins over -v and -q); default INFO")
 
 
 def hand_arg(p: argparse.ArgumentParser, help: str = "hand config name (configs/hands/<hand>/)") -> None:
@@ -27,7 +71,8 @@ def hand_arg(p: argparse.ArgumentParser, help: str = "hand config name (configs/
 
 def generation_args(p: argparse.ArgumentParser) -> None:
     """Options shared by ``generate`` and ``augment``."""
-    p.add_argument("--n", type=count, default=200, help="grasps wanted per demo / object")
+    p.add_argument("--n", type=count, default=DEFAULT_GRASPS, help=n_help("grasps wanted per "
+                   "demo / object"))
     from sim.validate.config import PROTOCOLS, SQUEEZE_CONVENTIONS
 
     p.add_argument("--validate", choices=(*PROTOCOLS, "none"), default="lift-drop",
@@ -55,6 +100,41 @@ def generation_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="FSG seed (worker k uses seed + k)")
     workers_arg(p)
     budget_arg(p, 120.0)
+
+
+def n_help(what: str) -> str:
+    """The help of a ``--n`` that makes grasps: what it is, and the shortfall rule."""
+    return (f"{what} (default %(default)s). A run that makes fewer than half of them (e.g. "
+            f"stopped by --budget; none at all included) writes what it made and exits with "
+            f"status {SHORT_STATUS}; a --n beyond FSG's ceiling of about "
+            f"{FSG_MAX_GRASPS_PER_S:g} grasps per second per worker within --budget is warned "
+            "about before the search")
+
+
+def reachable_grasps(budget_s: float, workers: int) -> int:
+    """The most grasps FSG could make in ``budget_s`` with ``workers`` processes
+    (:data:`FSG_MAX_GRASPS_PER_S`)."""
+    return math.floor(FSG_MAX_GRASPS_PER_S * max(workers, 1) * budget_s)
+
+
+def warn_if_unreachable(console: Console, n: int, budget_s: float, workers: int) -> bool:
+    """Warn, before the search, when ``n`` grasps cannot be made within ``budget_s`` on
+    ``workers`` processes even at FSG's ceiling; returns whether it warned."""
+    most = reachable_grasps(budget_s, workers)
+    if n <= most:
+        return False
+    console.print(f"warning: --n {n} cannot be reached within --budget {budget_s:g} s: FSG makes "
+                  f"at most about {FSG_MAX_GRASPS_PER_S:g} grasps per second per worker, "
+                  f"{most} with {workers} worker(s); expect a shortfall (raise --budget or "
+                  f"lower --n); a run with fewer than half of --n exits with status "
+                  f"{SHORT_STATUS}", style="yellow", soft_wrap=True)
+    return True
+
+
+def fell_short(requested: int, made: int) -> bool:
+    """Whether ``made`` of ``requested`` grasps is a shortfall of more than
+    :data:`SHORT_SHARE` (exit status :data:`SHORT_STATUS`)."""
+    return made < SHORT_SHARE * requested
 
 
 def workers_arg(p: argparse.ArgumentParser) -> None:

@@ -10,6 +10,7 @@ from pathlib import Path
 
 from rich.console import Console
 
+from dexaug.commands.guards import require_writable
 from dexaug.commands.registry import command
 
 __all__ = ["repair_cmd"]
@@ -32,8 +33,9 @@ def repair_cmd(args: argparse.Namespace, console: Console) -> int:
     reading resumes at the next intact chunk), with a summary and footer. It says what was
     found and where the file was cut or damaged. The source is never written to.
     """
-    from teleop.record.repair import repair
+    from teleop.record.repair import default_output, repair
 
+    require_writable(args.out or default_output(args.file), "--out")
     report = repair(args.file, args.out)
     for line in report.lines():
         console.print(line, markup=False, highlight=False)

@@ -1,12 +1,15 @@
 """What the augmentation commands share: rich progress bars, the per-unit summary table,
-running units of work (``dexaug batch``, ``augment --ray``) locally or on Ray, and the optional
-arm stage after each unit (``--arm``)."""
+running units of work (``dexaug batch``, ``augment --ray``) locally or on Ray, what a unit that
+fell short says (:func:`report_shortfalls`), and the optional arm stage after each unit
+(``--arm``)."""
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
-from collections.abc import Callable, Sequence
+import logging
+from collections.abc import Callable, Iterator, Sequence
 from typing import TYPE_CHECKING
 
 from rich.console import Console
@@ -14,7 +17,8 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from rich.table import Table
 
 from dexaug.commands.argtypes import count
-from dexaug.commands.options import augment_options
+from dexaug.commands.guards import error_hint
+from dexaug.commands.options import augment_options, fell_short
 from sim.errors import UsageError
 
 if TYPE_CHECKING:
@@ -23,8 +27,9 @@ if TYPE_CHECKING:
     from dexaug.pipeline.summary import DemoSummary
     from dexaug.scale.units import Unit
 
-__all__ = ["ArmRow", "arm_args", "arm_placements", "arm_table", "progress_bars", "put_on_arm",
-           "ray_args", "ray_options", "run_units", "stage_ticker", "summary_table"]
+__all__ = ["ArmRow", "arm_args", "arm_placements", "arm_table", "fsg_rejections", "no_grasp_why",
+           "progress_bars", "put_on_arm", "ray_args", "ray_options", "report_shortfalls",
+           "run_units", "stage_ticker", "summary_table"]
 
 
 def progress_bars(console: Console) -> Progress:
@@ -97,13 +102,91 @@ def run_units(units: Sequence[Unit], args: argparse.Namespace, console: Console,
     rows = []
     for o in outcomes:
         if o.summary is None:
-            console.print(f"{o.unit.id}: {o.error}", style="red", highlight=False)
+            console.print(error_hint(f"{o.unit.id}: {o.error}"), style="red", highlight=False)
             continue
         s = o.summary
         rows.append(s)
         state = "skipped (done)" if s.skipped else "done"
         console.print(f"{s.demo_id}: {s.passed}/{s.generated} passed, {state}; report {s.report}")
     return rows, sum(o.summary is None for o in outcomes)
+
+
+# ------------------------------------------------------------------------------ shortfalls
+
+#: what FSG counts but does not reject for: left out of the reasons a search found nothing
+_NOT_REJECTIONS = ("candidates", "accepted", "accepted_open", "relaxed")
+
+
+class _FsgCounts(logging.Handler):
+    """Keeps the rejection counts of FSG's shortfall warning (``augment.fsg.run``: object name
+    first, the counts last among its arguments), by object: the one place this process sees
+    the counts of a search the pipeline ran (its result keeps only why it stopped)."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.DEBUG)
+        self.by_object: dict[str, dict[str, int]] = {}
+
+    def emit(self, record: logging.LogRecord) -> None:
+        args = record.args if isinstance(record.args, tuple) else ()
+        counts = next((a for a in reversed(args) if isinstance(a, dict) and "candidates" in a),
+                      None)
+        if counts is not None and args and isinstance(args[0], str):
+            self.by_object[args[0]] = dict(counts)
+
+
+@contextlib.contextmanager
+def fsg_rejections() -> Iterator[dict[str, dict[str, int]]]:
+    """While open, the rejection counts of every FSG search of this process that fell short,
+    by object name (empty for searches run elsewhere, e.g. on Ray)."""
+    handler = _FsgCounts()
+    logger = logging.getLogger("augment.fsg.run")
+    logger.addHandler(handler)
+    try:
+        yield handler.by_object
+    finally:
+        logger.removeHandler(handler)
+
+
+def no_grasp_why(s: DemoSummary, counts: dict[str, int] | None, budget_s: float | None) -> str:
+    """Why FSG found no grasp for ``s``, in words: where the search stopped and, when known,
+    its main rejections (``counts``: FSG's, :func:`fsg_rejections`)."""
+    fsg_s = s.timings_s.get("fsg")
+    if s.fsg_stopped == "time budget":
+        spent = f" after {fsg_s:.2f} s" if fsg_s is not None else ""
+        of = f" of --budget {budget_s:g} s" if budget_s is not None else ""
+        why = f"the search stopped at its time budget{spent}{of}"
+    else:
+        why = f"the search stopped: {s.fsg_stopped}"
+    if counts is not None:
+        sampled = int(counts.get("candidates", 0))
+        top = sorted(((v, k) for k, v in counts.items() if v and k not in _NOT_REJECTIONS
+                      and not k.startswith(("pairs_", "usable_"))), reverse=True)[:3]
+        if not sampled:
+            why += "; no candidate grasp was sampled (raise --budget)"
+        elif top:
+            why += (f"; of {sampled} candidates, rejected for " +
+                    ", ".join(f"{k} {v}" for v, k in top))
+    return why
+
+
+def report_shortfalls(console: Console, summaries: Sequence[DemoSummary],
+                      counts: dict[str, dict[str, int]], budget_s: float | None) -> int:
+    """A yellow line for each unit that fell short of ``--n`` by more than half (one saying
+    "FSG found no grasp for this demo: WHY" when it made none); returns how many fell short."""
+    short = 0
+    for s in summaries:
+        if not fell_short(s.requested, s.generated):
+            continue
+        short += 1
+        if s.generated == 0:
+            console.print(f"{s.demo_id}: FSG found no grasp for this demo: "
+                          f"{no_grasp_why(s, counts.get(s.object), budget_s)}",
+                          style="yellow", highlight=False, soft_wrap=True)
+        else:
+            console.print(f"{s.demo_id}: fell short: {s.generated} of --n {s.requested} "
+                          f"grasps, fewer than half (stopped: {s.fsg_stopped})",
+                          style="yellow", highlight=False, soft_wrap=True)
+    return short
 
 
 def summary_table(console: Console, rows: list[DemoSummary]) -> None:

@@ -1,5 +1,5 @@
 """Subcommands of the teleoperation half: ``retarget``, ``synth``, ``import-trajectory``,
-``bridge``, ``replay``.
+``bridge`` (``replay``: :mod:`dexaug.commands.replay`).
 
 Each parses its arguments, calls ``teleop``, and reports; the bridge can hand every finished
 recording to ``dexaug augment`` in a background process.
@@ -19,17 +19,20 @@ from rich.progress import Progress
 from rich.table import Table
 from rich.text import Text
 
-from dexaug.commands.argtypes import count, free_port, int_at_least, port, positive, rate, rig_name
+from dexaug.commands.argtypes import count, free_port, int_at_least, port, positive, rig_name
+from dexaug.commands.guards import object_name, require_writable
 from dexaug.commands.network import require_free_port, zenoh_message
-from dexaug.commands.options import hand_arg
+from dexaug.commands.options import DEFAULT_GRASPS, hand_arg
 from dexaug.commands.registry import command
 from sim.errors import NetworkError, UsageError
 
 #: ``bridge --foxglove``'s defaults (teleop.bridge.foxglove_live's, not imported at start-up:
-#: the SDK loads only when the server is asked for)
+#: the SDK loads only when the server is asked for): Foxglove's conventional port, which the
+#: dashboard (``dexaug ui``, :data:`dexaug.commands.ui.DASHBOARD_PORT`) leaves free
 FOXGLOVE_HOST, FOXGLOVE_PORT = "127.0.0.1", 8765
 
 if TYPE_CHECKING:
+
     from dexaug.pipeline.augment_queue import AugmentQueue
 
 
@@ -53,6 +56,8 @@ def retarget(args: argparse.Namespace, console: Console) -> int:
     from teleop.retarget.retargeter import Retargeter
     from teleop.retarget.trace import retarget_frames, summarise_errors
 
+    if args.out:
+        require_writable(args.out, "--out")
     if args.file.suffix == ".js":
         from teleop.input.iwer import iwer_hand_frames, load_iwer_capture
 
@@ -86,8 +91,8 @@ def retarget(args: argparse.Namespace, console: Console) -> int:
 
 
 def _synth_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--object", default="005_tomato_soup_can", help="object to grasp (YCB id or "
-                   "primitive)")
+    p.add_argument("--object", default="005_tomato_soup_can", type=object_name,
+                   help="object to grasp (YCB id or primitive)")
     hand_arg(p, "robot hand config the episode targets")
     p.add_argument("--grasp", help="reference grasp to imitate (default: the hand's reference "
                    "grasp of the object, else a generic side grasp)")
@@ -107,6 +112,7 @@ def synth(args: argparse.Namespace, console: Console) -> int:
     from teleop.synthetic.synthesize import synthesize
     from teleop.synthetic.writer import write_session
 
+    require_writable(args.out, "--out")
     episode = synthesize(args.object, hand=args.hand, seed=args.seed, grasp_name=args.grasp)
     path = write_session(episode, args.out, overwrite=args.overwrite)
     tracked = int(episode.tracked.sum())
@@ -137,8 +143,9 @@ def _import_trajectory_args(p: argparse.ArgumentParser) -> None:
                    "xr: an OpenXR reference space (+Y up, -Z forward); world: the operator's "
                    "tracking space in MuJoCo axes (+Z up); default hand for mediapipe, xr for openxr")
     hand_arg(p, "robot hand the session is for")
-    p.add_argument("--object", help="object on the table (YCB id or primitive): required with "
-                   "object poses in the file, and `dexaug rerecord` needs one (here or there)")
+    p.add_argument("--object", type=object_name, help="object on the table (YCB id or "
+                   "primitive): required with object poses in the file, and `dexaug rerecord` "
+                   "needs one (here or there)")
     p.add_argument("--wrist-pos", type=float, nargs=3, metavar=("X", "Y", "Z"),
                    default=default.wrist_pos_m.tolist(), help="--space hand: the mean wrist "
                    "position in the tracking space, metres (the table top is at z 0.8); default "
@@ -164,6 +171,7 @@ def import_trajectory(args: argparse.Namespace, console: Console) -> int:
     from teleop.input.keypoints import Anchor
     from teleop.input.trajectory import import_trajectory as run_import
 
+    require_writable(args.out, "--out")
     space = args.space or ("hand" if args.format == "mediapipe" else "xr")
     result = run_import(args.file, args.out, fmt=args.format, side=args.side, fps=args.fps,
                         hand=args.hand, space=space, object_name=args.object,
@@ -179,7 +187,8 @@ def import_trajectory(args: argparse.Namespace, console: Console) -> int:
 
 def _bridge_args(p: argparse.ArgumentParser) -> None:
     hand_arg(p)
-    p.add_argument("--object", help="object on the table (default: configs/teleop.toml [bridge])")
+    p.add_argument("--object", type=object_name,
+                   help="object on the table (default: configs/teleop.toml [bridge])")
     p.add_argument("--rig", type=rig_name, default="local", help="zenoh key prefix dexaug/<rig>/… "
                    "(letters, digits, _ and -)")
     p.add_argument("--listen", type=port, default=7447, help="TCP port to listen on (127.0.0.1)")
@@ -225,7 +234,7 @@ def _bridge_args(p: argparse.ArgumentParser) -> None:
                    "running)")
     p.add_argument("--augment-out", type=Path, default=Path("datasets"),
                    help="--auto-augment: output folder (default ./datasets)")
-    p.add_argument("--augment-n", type=count, default=200,
+    p.add_argument("--augment-n", type=count, default=DEFAULT_GRASPS,
                    help="--auto-augment: grasps per demo; default %(default)s")
 
 
@@ -243,6 +252,10 @@ def bridge(args: argparse.Namespace, console: Console) -> int:
     from teleop.bridge.main import bridge_main
 
     require_free_port("--listen", args.listen)   # before seconds of loading the hand and scene
+    if args.record:
+        require_writable(args.record, "--record")
+    if args.auto_augment:
+        require_writable(args.augment_out, "--augment-out", folder=True)
     foxglove = _foxglove_address(args) if args.foxglove else None
     hook = (_auto_augment(args.augment_out, console, ("--n", str(args.augment_n)))
             if args.auto_augment else None)
@@ -312,47 +325,3 @@ def _auto_augment(out: Path, console: Console, augment_args: Sequence[str] = ())
 
     return AugmentQueue(out, augment_args,
                         notify=lambda message: console.print(Text(message), highlight=False))
-
-
-def _replay_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("file", type=Path, help="MCAP session to replay")
-    p.add_argument("--rate", type=rate, default=1.0,
-                   help="playback speed factor (> 0), or 'max'; default %(default)s")
-    p.add_argument("--rig", type=rig_name, default="local", help="zenoh key prefix "
-                   "dexaug/<rig>/… (letters, digits, _ and -)")
-    p.add_argument("--connect", type=port, nargs="+", default=[7447],
-                   help="bridge port(s) to connect to on 127.0.0.1")
-    p.add_argument("--object-mode", choices=("demo", "free"),
-                   help="set the bridge's object mode first (default: the session's; free for "
-                   "an older session that records none)")
-
-
-@command("replay", _replay_args)
-def replay(args: argparse.Namespace, console: Console) -> int:
-    """Publish a recorded session's hand tracking back onto zenoh (dexaug/<rig>/hands).
-
-    With original timing (--rate 1.0), scaled, or as fast as possible (--rate max); the bridge
-    cannot tell a replay from a live headset. The bridge is first put in the session's object
-    mode (or --object-mode's). A session without hand frames is refused (exit status 2).
-    """
-    from teleop.bridge.session_mode import session_object_mode, tell_bridge
-    from teleop.keys import free_tcp_port, open_session
-    from teleop.record.replay import replay as replay_session
-    from teleop.record.schemas import TOPIC_HANDS
-    from teleop.record.session import open_session as open_recording
-
-    recording = open_recording(args.file)
-    if not recording.counts.get(TOPIC_HANDS):
-        held = ", ".join(f"{t} {n}" for t, n in recording.counts.items() if n) or "no messages"
-        raise UsageError(f"{args.file}: no hand frames ({TOPIC_HANDS}) to replay; it holds "
-                         f"{held}")
-    mode = session_object_mode(recording.metadata, args.file, args.object_mode)
-    session = open_session(free_tcp_port(), tuple(args.connect))
-    try:
-        if tell_bridge(session, args.rig, mode) is not None:
-            console.print(f"bridge object mode: {mode}")
-        sent = replay_session(args.file, session, args.rig, rate=args.rate)
-    finally:
-        session.close()
-    console.print(f"replayed {sent} hand-tracking messages from {args.file}")
-    return 0

@@ -1,8 +1,9 @@
 """Subcommand ``ui``: the local dashboard (``dexaug.dashboard``).
 
-The augmentation options are the ``augment`` command's own (same flags, same meaning), so a
-demo augmented from the page and one augmented with ``dexaug augment`` under the same options
-share their results; only ``--n`` defaults lower, for a quicker first click.
+The augmentation options are the ``augment`` command's own (same flags, same meaning and
+defaults), so a demo augmented from the page and one augmented with ``dexaug augment`` under the
+same options share their results. The page listens on :data:`DASHBOARD_PORT`, not on Foxglove's
+8765 (``dexaug bridge --foxglove``), so both run at once.
 """
 
 from __future__ import annotations
@@ -16,11 +17,16 @@ from rich.console import Console
 from rich.text import Text
 
 from dexaug.commands.argtypes import free_port, int_at_least
+from dexaug.commands.guards import require_writable
 from dexaug.commands.options import augment_options, generation_args
 from dexaug.commands.registry import command
 from dexaug.commands.workers import stop_workers
 
 log = logging.getLogger(__name__)
+
+#: the dashboard's default port (dexaug.dashboard.server.DashboardConfig's): beside Foxglove's
+#: 8765 (dexaug.commands.teleop.FOXGLOVE_PORT), which ``bridge --foxglove`` listens on
+DASHBOARD_PORT = 8770
 
 
 def _ui_args(p: argparse.ArgumentParser) -> None:
@@ -30,12 +36,12 @@ def _ui_args(p: argparse.ArgumentParser) -> None:
                    help="output folder: one sub-folder per demo (default ./datasets)")
     p.add_argument("--host", default="127.0.0.1", help="listen address (default 127.0.0.1: "
                    "this machine only)")
-    p.add_argument("--port", type=free_port, default=8765, help="listen port (0: any free port; "
-                   "default 8765)")
+    p.add_argument("--port", type=free_port, default=DASHBOARD_PORT,
+                   help="listen port (0: any free port); default %(default)s, beside the Foxglove "
+                   "live view's 8765 (bridge --foxglove)")
     p.add_argument("--gallery", type=int_at_least(0), default=6,
                    help="grasps rendered in each report (0: no report)")
     generation_args(p)
-    p.set_defaults(n=100)
 
 
 @command("ui", _ui_args)
@@ -49,6 +55,7 @@ def ui_cmd(args: argparse.Namespace, console: Console) -> int:
     """
     from dexaug.dashboard.server import Dashboard, DashboardConfig
 
+    require_writable(args.out, "--out", folder=True)
     cfg = DashboardConfig(sessions_dir=args.sessions, out_root=args.out,
                           options=augment_options(args), host=args.host, port=args.port)
     with Dashboard(cfg) as dash:

@@ -16,6 +16,7 @@ from rich.progress import Progress
 from rich.table import Table
 from rich.text import Text
 
+from dexaug.commands.guards import object_name, require_writable
 from dexaug.commands.options import hand_arg
 from dexaug.commands.registry import command
 
@@ -24,7 +25,7 @@ __all__ = ["run_reference_validation", "validate"]
 
 def _validate_args(p: argparse.ArgumentParser) -> None:
     hand_arg(p)
-    p.add_argument("--object", help="only grasps of this object")
+    p.add_argument("--object", type=object_name, help="only grasps of this object")
     p.add_argument("--grasps", type=Path, help="reference-grasp TOML (default: "
                    "configs/hands/<hand>/grasps.toml)")
     from sim.validate.config import PROTOCOLS
@@ -108,7 +109,10 @@ def validate(args: argparse.Namespace, console: Console) -> int:
     from sim.validate.config import PROTOCOLS
 
     protocols = PROTOCOLS if args.protocol == "all" else (args.protocol,)
+    if args.json:
+        require_writable(args.json, "--json")
     if args.render:
+        require_writable(args.render, "--render", folder=True)
         from sim.world.render import select_gl_backend
 
         select_gl_backend()

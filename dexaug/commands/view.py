@@ -13,6 +13,7 @@ from rich.console import Console
 from rich.text import Text
 
 from dexaug.commands.argtypes import int_at_least
+from dexaug.commands.guards import dataset_file, did_you_mean, require_writable
 from dexaug.commands.registry import command
 from sim.errors import DexaugError
 
@@ -22,7 +23,7 @@ __all__ = ["view"]
 def _view_args(p: argparse.ArgumentParser) -> None:
     from dexaug.viewer.scene import ViewerLimits
 
-    p.add_argument("dataset", type=Path, help="a grasps.h5 written by augment/generate")
+    p.add_argument("dataset", type=dataset_file, help="a grasps.h5 written by augment/generate")
     p.add_argument("--object", help="only this object's table (default: every object)")
     p.add_argument("--out", type=Path, help="the page to write (one object); default: "
                    "viewer_<object>.html beside the dataset")
@@ -46,10 +47,12 @@ def view(args: argparse.Namespace, console: Console) -> int:
     from sim.hand.model import Hand
     from sim.world.objects import load_object
 
+    require_writable(args.out or args.dataset.parent / "viewer.html", "--out")
     tables = dataset.load(args.dataset)
     if args.object is not None and args.object not in tables:
         raise DexaugError(f"{args.dataset}: no object {args.object!r}; it holds "
-                          f"{', '.join(sorted(tables)) or 'no table'}")
+                          f"{', '.join(sorted(tables)) or 'no table'}"
+                          f"{did_you_mean(args.object, tables)}")
     names = [args.object] if args.object is not None else sorted(tables)
     if args.out is not None and len(names) > 1:
         raise DexaugError(f"{args.dataset} holds {len(names)} objects: --out names one page, "

@@ -10,6 +10,7 @@ from pathlib import Path
 from rich.console import Console
 from rich.table import Table
 
+from dexaug.commands.guards import require_writable
 from dexaug.commands.options import hand_arg
 from dexaug.commands.registry import command
 
@@ -34,6 +35,9 @@ def workspace(args: argparse.Namespace, console: Console) -> int:
     with contact faces centred on its fingertip contacts. Clouds are cached on disk
     (DEXAUG_CACHE_DIR), keyed by the hand model, config, demo and parameters.
     """
+    for option, path in (("--out", args.out), ("--render", args.render)):
+        if path is not None:
+            require_writable(path, option)
     if args.render:
         from sim.world.render import select_gl_backend
 

@@ -75,7 +75,7 @@ class DashboardConfig:
     out_root: Path = Path("datasets")
     options: AugmentOptions = field(default_factory=AugmentOptions)
     host: str = "127.0.0.1"
-    port: int = 8765
+    port: int = 8770   # not 8765: Foxglove's (bridge --foxglove), so both can run
     max_queued: int = 20
     max_finished: int = 100
 

@@ -4,7 +4,7 @@ cloud, metrics.
 The report states exactly the numbers of ``summary.json`` and the dataset (it is written from
 the same :class:`~dexaug.pipeline.summary.DemoSummary` and table), so a reader can trust either. The
 palm-position cloud is the paper's Figs. 10–11 view: every kept grasp's palm position around
-the object's point cloud, seen from the top (x–y) and the side (x–z), drawn with OpenCV (no
+the object's point cloud, seen from the top (x–y) and the side (x–z), drawn with Pillow (no
 plotting library needed). Renders need offscreen OpenGL; without it the report says so and
 keeps the numbers.
 """
@@ -17,13 +17,13 @@ import re
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import cv2
 import numpy as np
 
 from dexaug.pipeline.summary import DemoSummary, demo_grasp_text
 from dexaug.viewer.page import write_viewer
 from dexaug.viewer.scene import viewer_scene
 from sim.io import write_bytes_atomic
+from sim.world.drawing import Canvas
 from sim.world.render import gl_available, save_png
 
 if TYPE_CHECKING:
@@ -65,35 +65,33 @@ def palm_cloud_image(object_points: np.ndarray, palm_positions: np.ndarray,
             v = 0.5 - (p[:, b] - centre[b]) / half * 0.5
             return np.round(np.column_stack([u, v]) * (size_px - 1)).astype(int)
 
-        if table is not None:
-            _table_line(img, table, a, b, centre, half, size_px)
-        for u, v in px(object_points):
-            cv2.circle(img, (int(u), int(v)), 1, (170, 170, 170), -1)
-        for u, v in px(palm_positions):
-            cv2.circle(img, (int(u), int(v)), 3, (220, 40, 40), -1)
-        if demo_palm is not None:
-            (u, v), = px(demo_palm)
-            cv2.drawMarker(img, (int(u), int(v)), (0, 150, 60), cv2.MARKER_DIAMOND, 16, 3)
-        (ou, ov), = px(np.zeros(3))
-        arrow = int(0.25 * size_px)
-        for axis, (du, dv) in ((a, (arrow, 0)), (b, (0, -arrow))):
-            cv2.arrowedLine(img, (int(ou), int(ov)), (int(ou + du), int(ov + dv)), (40, 40, 40),
-                            1, tipLength=0.08)
-            cv2.putText(img, names[axis], (int(ou + du) + 4, int(ov + dv) + 4),
-                        cv2.FONT_HERSHEY_SIMPLEX, 0.45, (40, 40, 40), 1)
-        cv2.putText(img, title + " (object frame)", (8, 20), cv2.FONT_HERSHEY_SIMPLEX, 0.5,
-                    (0, 0, 0), 1)
-        bar = 0.05 / (2 * half) * (size_px - 1)   # a 5 cm scale bar
-        cv2.line(img, (10, size_px - 12), (10 + int(bar), size_px - 12), (0, 0, 0), 2)
-        cv2.putText(img, "5 cm", (12, size_px - 18), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1)
+        with Canvas(img) as canvas:
+            if table is not None:
+                _table_line(canvas, table, a, b, centre, half, size_px)
+            for uv in px(object_points):
+                canvas.disk(uv, 1, (170, 170, 170))
+            for uv in px(palm_positions):
+                canvas.disk(uv, 3, (220, 40, 40))
+            if demo_palm is not None:
+                canvas.diamond(px(demo_palm)[0], (0, 150, 60), size=16, width=3)
+            (ou, ov), = px(np.zeros(3))
+            arrow = int(0.25 * size_px)
+            for axis, (du, dv) in ((a, (arrow, 0)), (b, (0, -arrow))):
+                canvas.arrow((ou, ov), (ou + du, ov + dv), (40, 40, 40), tip=0.08)
+                canvas.text((ou + du + 4, ov + dv + 4), names[axis], (40, 40, 40), size_px=14)
+            canvas.text((8, 20), title + " (object frame)", (0, 0, 0), size_px=15)
+            bar = 0.05 / (2 * half) * (size_px - 1)   # a 5 cm scale bar
+            canvas.line((10, size_px - 12), (10 + int(bar), size_px - 12), (0, 0, 0), width=2)
+            canvas.text((12, size_px - 18), "5 cm", (0, 0, 0), size_px=12)
         panels.append(img)
     legend = np.full((24, 2 * size_px, 3), 255, np.uint8)
-    cv2.putText(legend, "grey: object   red: palms of kept grasps   green: demo palm   "
-                "blue: table", (8, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1)
+    with Canvas(legend) as canvas:
+        canvas.text((8, 16), "grey: object   red: palms of kept grasps   green: demo palm   "
+                    "blue: table", (0, 0, 0), size_px=14)
     return np.vstack([np.hstack(panels), legend])
 
 
-def _table_line(img: np.ndarray, table: tuple[np.ndarray, np.ndarray], a: int, b: int,
+def _table_line(canvas: Canvas, table: tuple[np.ndarray, np.ndarray], a: int, b: int,
                 centre: np.ndarray, half: float, size_px: int) -> None:
     """The table plane's trace in the (a, b) view: where it cuts the plane through the view's
     centre along the third axis; nothing when the plane is (nearly) parallel to the view."""
@@ -112,7 +110,7 @@ def _table_line(img: np.ndarray, table: tuple[np.ndarray, np.ndarray], a: int, b
     pts = [(round(((u - centre[a]) / half * 0.5 + 0.5) * (size_px - 1)),
             round((0.5 - (v - centre[b]) / half * 0.5) * (size_px - 1)))
            for u, v in zip(us, vs, strict=True)]
-    cv2.line(img, pts[0], pts[1], (60, 90, 220), 2)
+    canvas.line(pts[0], pts[1], (60, 90, 220), width=2)
 
 
 def _render(hand: Hand, obj: ObjectAsset, grasps: list[Grasp], folder: Path,

@@ -14,6 +14,7 @@ Geometry is read back from the compiled model, in the object body frame (the obj
 from __future__ import annotations
 
 import logging
+import multiprocessing
 from collections.abc import Callable, Iterable
 from functools import cached_property
 from pathlib import Path
@@ -167,8 +168,11 @@ def load_object_xml(path: Path, name: str | None = None, *, log_warnings: bool =
     key = str(path.resolve())
     if log_warnings and warnings and key not in _WARNED_TEXTURES:
         _WARNED_TEXTURES.add(key)
+        # once per run: the process that runs the command warns; its worker processes (FSG,
+        # validation), which load the same object, say it at DEBUG only
+        level = logging.DEBUG if multiprocessing.parent_process() is not None else logging.WARNING
         for warning in warnings:
-            logger.warning("%s: %s", path, warning)
+            logger.log(level, "%s: %s", path, warning)
     return asset
 
 
@@ -219,7 +223,7 @@ def load_object(name_or_path: str | Path) -> ObjectAsset:
 
     The object is compiled once here, so a broken file raises ``AssetError`` (naming the file and
     the problem) at load time. Missing texture files are dropped with one logged warning per
-    object.
+    object and run (worker processes log it at DEBUG).
     """
     text = str(name_or_path)
     if text in PRIMITIVES:

@@ -11,11 +11,11 @@ import os
 from functools import cache
 from typing import TYPE_CHECKING
 
-import cv2
 import numpy as np
 
 from sim.errors import DexaugError
 from sim.io import write_bytes_atomic
+from sim.world.drawing import encode_png
 
 if TYPE_CHECKING:
     import mujoco
@@ -122,7 +122,4 @@ def geom_box_corners(model: mujoco.MjModel, data: mujoco.MjData, geoms: np.ndarr
 
 def save_png(path: str | os.PathLike, rgb: np.ndarray) -> None:
     """Write an RGB image to PNG atomically."""
-    ok, buf = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
-    if not ok:
-        raise RuntimeError(f"OpenCV could not encode {path} as PNG")
-    write_bytes_atomic(path, buf.tobytes())
+    write_bytes_atomic(path, encode_png(rgb))

@@ -15,9 +15,10 @@ from __future__ import annotations
 
 import math
 
-import cv2
 import mujoco
 import numpy as np
+
+from sim.world.drawing import encode_jpeg
 
 Array = np.ndarray
 
@@ -55,7 +56,7 @@ class HeadView:
         self.opt.flags[mujoco.mjtVisFlag.mjVIS_CONTACTFORCE] = False
         model.vis.scale.contactwidth = 0.08
         model.vis.scale.contactheight = 0.02
-        self.encode_params = [int(cv2.IMWRITE_JPEG_QUALITY), int(jpeg_quality)]
+        self.jpeg_quality = int(jpeg_quality)
 
     def update(self, data: mujoco.MjData, head_pos_m: Array, head_quat_wxyz: Array) -> None:
         """Copy the state into the renderer's scene from the head's viewpoint (the only step
@@ -72,10 +73,7 @@ class HeadView:
 
     def encode(self, rgb: Array) -> bytes:
         """JPEG bytes of an RGB image."""
-        ok, buf = cv2.imencode(".jpg", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), self.encode_params)
-        if not ok:
-            raise RuntimeError("JPEG encoding failed")
-        return buf.tobytes()
+        return encode_jpeg(rgb, self.jpeg_quality)
 
     def render_jpeg(self, data: mujoco.MjData, head_pos_m: Array, head_quat_wxyz: Array
                     ) -> bytes:

@@ -1,0 +1,101 @@
+"""The ``replay`` subcommand: a recorded session's hand tracking published back onto zenoh,
+once a bridge listens.
+
+Why a module of its own: replay is the headset-free half of every test and recipe, and its
+one guard — refusing to publish into a network where no bridge subscribes, which used to exit
+0 having done nothing — is a zenoh matching-status wait that the live commands do not need.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from rich.console import Console
+
+from dexaug.commands.argtypes import port, positive, rate, rig_name
+from dexaug.commands.registry import command
+from sim.errors import NetworkError, UsageError
+
+if TYPE_CHECKING:
+    import zenoh
+
+#: ``replay --wait-bridge-s``: how long replay waits for a bridge (any subscriber of the rig's
+#: hands) before it gives up; generous, as a bridge loading its hand and scene takes seconds
+WAIT_BRIDGE_S = 30.0
+
+
+def _replay_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("file", type=Path, help="MCAP session to replay")
+    p.add_argument("--rate", type=rate, default=1.0,
+                   help="playback speed factor (> 0), or 'max'; default %(default)s")
+    p.add_argument("--rig", type=rig_name, default="local", help="zenoh key prefix "
+                   "dexaug/<rig>/… (letters, digits, _ and -)")
+    p.add_argument("--connect", type=port, nargs="+", default=[7447],
+                   help="bridge port(s) to connect to on 127.0.0.1")
+    p.add_argument("--object-mode", choices=("demo", "free"),
+                   help="set the bridge's object mode first (default: the session's; free for "
+                   "an older session that records none)")
+    p.add_argument("--wait-bridge-s", type=positive, default=WAIT_BRIDGE_S, metavar="SECONDS",
+                   help="how long to wait for a bridge (a subscriber of dexaug/<rig>/hands, "
+                   "found through zenoh's matching status) before giving up with exit status "
+                   "2 and nothing published; default %(default)g s")
+
+
+@command("replay", _replay_args)
+def replay(args: argparse.Namespace, console: Console) -> int:
+    """Publish a recorded session's hand tracking back onto zenoh (dexaug/<rig>/hands).
+
+    With original timing (--rate 1.0), scaled, or as fast as possible (--rate max); the bridge
+    cannot tell a replay from a live headset. The bridge is first put in the session's object
+    mode (or --object-mode's). A session without hand frames is refused (exit status 2), and so
+    is a replay no bridge listens to within --wait-bridge-s (nothing is published).
+    """
+    from teleop.bridge.session_mode import session_object_mode, tell_bridge
+    from teleop.keys import free_tcp_port, open_session
+    from teleop.record.replay import replay as replay_session
+    from teleop.record.schemas import TOPIC_HANDS
+    from teleop.record.session import open_session as open_recording
+
+    recording = open_recording(args.file)
+    if not recording.counts.get(TOPIC_HANDS):
+        held = ", ".join(f"{t} {n}" for t, n in recording.counts.items() if n) or "no messages"
+        raise UsageError(f"{args.file}: no hand frames ({TOPIC_HANDS}) to replay; it holds "
+                         f"{held}")
+    mode = session_object_mode(recording.metadata, args.file, args.object_mode)
+    session = open_session(free_tcp_port(), tuple(args.connect))
+    try:
+        _wait_for_bridge(session, args.rig, args.wait_bridge_s, args.connect)
+        if tell_bridge(session, args.rig, mode) is not None:
+            console.print(f"bridge object mode: {mode}")
+        sent = replay_session(args.file, session, args.rig, rate=args.rate)
+    finally:
+        session.close()
+    console.print(f"replayed {sent} hand-tracking messages from {args.file}")
+    return 0
+
+
+def _wait_for_bridge(session: zenoh.Session, rig: str, wait_s: float, ports: Sequence[int]) -> None:
+    """Wait until something subscribes to the rig's hands (zenoh's matching status of a
+    publisher on that key, an event, not a poll of the network), at most ``wait_s`` seconds;
+    NetworkError (exit status 2) naming the key, the ports and what to do when nothing did."""
+    import threading
+
+    from teleop import keys as zkeys
+
+    key = zkeys.RigKeys(rig).hands
+    matched = threading.Event()
+    pub = session.declare_publisher(key)
+    listener = pub.declare_matching_listener(
+        lambda status: matched.set() if status.matching else None)
+    try:
+        if not (pub.matching_status.matching or matched.wait(wait_s)):
+            where = ", ".join(f"tcp/127.0.0.1:{p}" for p in ports)
+            raise NetworkError(f"no bridge subscribed to {key} within {wait_s:g} s (connecting "
+                               f"to {where}): start `dexaug bridge` first (same --rig), or "
+                               f"raise --wait-bridge-s; nothing was published")
+    finally:
+        listener.undeclare()
+        pub.undeclare()
