@@ -1,10 +1,12 @@
 """Subcommand ``demo``: the main job on its embedded default (what ``make demo`` runs), and the
 actions on demos (``dexaug demo ACTION``).
 
-The main job: the teleop path (a synthetic session replayed through the bridge) and the
-augmentation of the committed demonstration, or of a scripted procedural one when the YCB
-objects are missing. Actions register with :func:`action` (argument setup + handler, as
-subcommands do with ``registry.command``), so adding one is one decorated function.
+The main job: one chain from a teleop recording to a dataset (a synthetic operator's session
+recorded through the bridge, its demo extracted and augmented:
+:mod:`dexaug.pipeline.demo_chain`), or the augmentation of a given session, or of a scripted
+procedural demonstration when the YCB objects are missing. Actions register with
+:func:`action` (argument setup + handler, as subcommands do with ``registry.command``), so
+adding one is one decorated function.
 """
 
 from __future__ import annotations
@@ -37,12 +39,13 @@ def action(name: str, setup: Setup) -> Callable[[Handler], Handler]:
 
 
 def _demo_args(p: argparse.ArgumentParser) -> None:
-    from sim.paths import REPO_ROOT
+    from dexaug.pipeline.demo_chain import DEMO_OBJECT, DEMO_SEED, recording_name
 
-    p.add_argument("--session", type=Path,
-                   default=REPO_ROOT / "recordings" / "demo_005_tomato_soup_can.mcap",
-                   help="the demonstration session to augment (default: the committed Shadow "
-                   "Hand grasp of the tomato soup can)")
+    p.add_argument("--session", type=Path, default=None,
+                   help="a recorded session to augment instead (every demo in it); default: "
+                   f"none, the chain records its own: a synthetic operator's session of "
+                   f"{DEMO_OBJECT} (seed {DEMO_SEED}) through the bridge into "
+                   f"OUT/{recording_name()}, whose demo is augmented")
     p.add_argument("--out", type=Path, default=Path("datasets"),
                    help="output folder; default %(default)s. A result of an earlier run there is "
                    "kept: this run then writes to the next free DIR-2, DIR-3, … and says so")
@@ -61,15 +64,18 @@ def _demo_args(p: argparse.ArgumentParser) -> None:
 
 @command("demo", _demo_args)
 def demo(args: argparse.Namespace, console: Console) -> int:
-    """Run the main job on its embedded default (what `make demo` runs).
+    """Run the main job on its embedded default (what `make demo` runs): teleop recording → dataset.
 
-    1. The teleop path: the synthetic operator's session (recordings/synth_*.mcap, raw hand
-       tracking) replays through the real bridge (zenoh, mink retargeting, MuJoCo) into a new
-       recording, as a headset's would.
-    2. The augmentation: the demonstration session (--session) → grasp demo → AutoWS → FSG →
-       lift-drop validation of every grasp → HDF5 dataset and HTML report, whose paths are
-       printed. Without the YCB objects, a scripted demonstration on a procedural cylinder is
-       recorded first and augmented instead.
+    1. session: a synthetic operator's hand-tracking session of the Phillips screwdriver (seed
+       0, no headset: `dexaug synth`), written to OUT/synth_<object>.mcap.
+    2. recording: that session through the real bridge (zenoh, mink retargeting, MuJoCo, the
+       object in demo mode) into OUT/demo_<object>.mcap, as a headset's would be recorded.
+    3. demo: the grasp demo extracted from that recording (fingers, and how it was found).
+    4. augmentation of that demo: AutoWS → FSG → lift-drop validation of every grasp → HDF5
+       dataset and HTML report in OUT/<demo id>/, whose paths are printed.
+    Each stage prints one line. With --session, that session's demos are augmented instead
+    (stages 3-4). Without the YCB objects, a scripted demonstration on a procedural cylinder
+    is recorded and augmented instead.
 
     A second run never replaces the first's result silently: it writes to the next free
     sibling of --out (datasets-2, …) and prints which, unless --overwrite. Exit status 3: the
@@ -77,53 +83,55 @@ def demo(args: argparse.Namespace, console: Console) -> int:
 
     Actions on demos: `dexaug demo ACTION --help` (import: a static grasp pose file → demo).
     """
-    import tempfile
-
     from dexaug.commands.options import SHORT_STATUS, fell_short
     from dexaug.commands.running import progress_bars, stage_ticker
+    from dexaug.pipeline.demo_chain import DEMO_OBJECT, record_demo, recording_name
     from dexaug.pipeline.options import AugmentOptions
-    from dexaug.pipeline.run import augment_session
+    from dexaug.pipeline.run import augment_demo, augment_session
     from sim.errors import DexaugError
-    from sim.paths import REPO_ROOT
+    from sim.hand.config import default_hand_name
     from sim.world.objects import load_object
-    from teleop.bridge.rerecord import rerecord
     from teleop.record.session import open_session
 
     require_writable(args.out, "--out", folder=True)
     session = args.session
-    raw = sorted((REPO_ROOT / "recordings").glob("synth_*.mcap"))
-    try:   # the committed sessions hold YCB objects: are they installed here?
-        for path in (session, *raw[:1]):
-            load_object(open_session(path).metadata.get("object", ""))
+    try:   # the chain's object and a given session's are YCB objects: are they installed here?
+        load_object(open_session(session).metadata.get("object", "") if session is not None
+                    else DEMO_OBJECT)
         procedural = None
     except DexaugError as exc:
         procedural = exc
-        raw = []
-    out = _result_root(args.out, None if procedural else session, args.overwrite, console)
+    own = PROCEDURAL_SESSION if procedural is not None else recording_name()
+    marks = (_session_marks(session) if procedural is None and session is not None
+             else lambda root: [root / own])
+    out = _result_root(args.out, marks, args.overwrite, console)
     out.mkdir(parents=True, exist_ok=True)
-    if procedural is not None:
-        console.print(f"{procedural}\n→ recording a scripted demonstration on a procedural "
-                      "cylinder instead", style="yellow", highlight=False)
-        session = _procedural_demo_session(out / PROCEDURAL_SESSION)
-    if raw:
-        with tempfile.TemporaryDirectory() as tmp:
-            start = time.perf_counter()
-            rec = open_session(rerecord(raw[0], Path(tmp) / "replayed.mcap"))
-            console.print(f"1. replayed {raw[0].name} through the bridge: {rec.counts['/hands']} "
-                          f"frames → {rec.counts['/state']} states, "
-                          f"{rec.counts['/contacts']} contact records in "
-                          f"{time.perf_counter() - start:.1f} s")
-    console.print(f"2. augmenting {session}")
     opts = AugmentOptions(n=args.n, time_budget_s=90.0, gallery=4)
-    start = time.perf_counter()
-    with progress_bars(console) as bar:
-        summaries = augment_session(session, out, opts, progress=stage_ticker(bar),
-                                    force=True)
+
+    def say(line: str) -> None:
+        console.print(line, highlight=False, soft_wrap=True)
+
+    if procedural is None and session is None:
+        made = record_demo(out, default_hand_name(), say=say)
+        start = time.perf_counter()
+        with progress_bars(console) as bar:
+            summaries = [augment_demo(made.demo, out, opts, progress=stage_ticker(bar),
+                                      force=True)]
+    else:
+        if procedural is not None:
+            console.print(f"{procedural}\n→ recording a scripted demonstration on a procedural "
+                          "cylinder instead", style="yellow", highlight=False)
+            session = _procedural_demo_session(out / PROCEDURAL_SESSION)
+        say(f"augmenting {session}")
+        start = time.perf_counter()
+        with progress_bars(console) as bar:
+            summaries = augment_session(session, out, opts, progress=stage_ticker(bar),
+                                        force=True)
     for s in summaries:
-        console.print(f"demo {s.demo_id}: {s.generated} grasps generated, {s.passed} passed "
-                      f"lift-drop in {time.perf_counter() - start:.1f} s")
-        console.print(f"dataset: {s.dataset}")
-        console.print(f"report:  {s.report}")
+        say(f"4. augmented: {s.demo_id} — {s.passed} grasps kept of {s.generated} generated "
+            f"(lift-drop, --n {s.requested}) in {time.perf_counter() - start:.1f} s")
+        say(f"dataset: {s.dataset}")
+        say(f"report:  {s.report}")
     return SHORT_STATUS if any(fell_short(s.requested, s.generated) for s in summaries) else 0
 
 
@@ -131,20 +139,24 @@ def demo(args: argparse.Namespace, console: Console) -> int:
 PROCEDURAL_SESSION = "demo_cylinder.mcap"
 
 
-def _result_root(out: Path, session: Path | None, overwrite: bool, console: Console) -> Path:
-    """Where this run writes: ``out``, unless an earlier run's result is there (the result
-    folder of one of ``session``'s demos, or without ``session`` the procedural session) and
-    ``overwrite`` is off: then the first of ``out-2``, ``out-3``, … that holds none, said in
-    one line."""
+def _session_marks(session: Path) -> Callable[[Path], list[Path]]:
+    """The result folders of ``session``'s demos in an output root."""
     from dexaug.pipeline.options import demo_dir
     from teleop.record import demos as extraction
 
-    demos = extraction.extract_demos(session) if session is not None else []
+    demos = extraction.extract_demos(session)
+    return lambda root: [demo_dir(root, d) for d in demos]
+
+
+def _result_root(out: Path, marks: Callable[[Path], list[Path]], overwrite: bool,
+                 console: Console) -> Path:
+    """Where this run writes: ``out``, unless an earlier run's result is there (one of
+    ``marks(out)``: the chain's recording, a given session's result folders, the procedural
+    session) and ``overwrite`` is off: then the first of ``out-2``, ``out-3``, … that holds
+    none, said in one line."""
 
     def taken(root: Path) -> Path | None:
-        marks = ([demo_dir(root, d) for d in demos] if session is not None
-                 else [root / PROCEDURAL_SESSION])
-        return next((m for m in marks if m.exists()), None)
+        return next((m for m in marks(root) if m.exists()), None)
 
     earlier = taken(out)
     if earlier is None or overwrite:
