@@ -60,6 +60,7 @@ demo: $(DEMO_STAMP) gl
 
 test: $(TEST_STAMP) gl browser
 	$(BIN)/ruff check .
+	$(BIN)/mypy
 	$(BIN)/python -m pytest -q
 
 # The timing-sensitive tests again with the other cores busy (scripts/under_load.sh).

@@ -7,6 +7,7 @@ a list of strings``). Config dataclasses are built from Sections; nothing reads 
 
 from __future__ import annotations
 
+import builtins
 import math
 import tomllib
 from collections.abc import Iterator
@@ -19,7 +20,11 @@ _MISSING = object()
 
 
 class Section:
-    """One table of a TOML file, with its location for error messages."""
+    """One table of a TOML file, with its location for error messages.
+
+    Its readers are named after the types they return (``str``, ``bool``, ``int``, ``float``),
+    which shadows those names in the class body: the annotations below them spell the
+    builtins ``builtins.str`` etc."""
 
     def __init__(self, data: dict[str, Any], file: Path | str, path: str = "") -> None:
         self.data = data
@@ -49,13 +54,14 @@ class Section:
             raise self.error(key, f"expected a string, got {value!r}")
         return value
 
-    def bool(self, key: str, default: Any = _MISSING) -> bool:
+    def bool(self, key: builtins.str, default: Any = _MISSING) -> builtins.bool:
         value = self._raw(key, default)
         if value is not default and not isinstance(value, bool):
             raise self.error(key, f"expected true or false, got {value!r}")
         return value
 
-    def int(self, key: str, default: Any = _MISSING, *, min: int | None = None) -> int:
+    def int(self, key: builtins.str, default: Any = _MISSING, *,
+            min: builtins.int | None = None) -> builtins.int:
         value = self._raw(key, default)
         if value is default:
             return value
@@ -65,8 +71,9 @@ class Section:
             raise self.error(key, f"expected an integer >= {min}, got {value}")
         return value
 
-    def float(self, key: str, default: Any = _MISSING, *, min: float | None = None,
-              max: float | None = None) -> float:
+    def float(self, key: builtins.str, default: Any = _MISSING, *,
+              min: builtins.float | None = None,
+              max: builtins.float | None = None) -> builtins.float:
         value = self._raw(key, default)
         if value is default:
             return value
@@ -76,7 +83,8 @@ class Section:
             raise self.error(key, f"expected a number in [{min}, {max}], got {value}")
         return float(value)
 
-    def like(self, key: str, default: bool | int | float | str) -> Any:
+    def like(self, key: builtins.str,
+             default: builtins.bool | builtins.int | builtins.float | builtins.str) -> Any:
         """``key`` read with the type of its ``default`` (bool, int, float or str), the
         default when absent: what a flat parameter table of a dataclass needs per field."""
         if isinstance(default, bool):
@@ -87,7 +95,8 @@ class Section:
             return self.float(key, default)
         return self.str(key, default)
 
-    def floats(self, key: str, length: int | None = None, default: Any = _MISSING) -> list[float]:
+    def floats(self, key: builtins.str, length: builtins.int | None = None,
+               default: Any = _MISSING) -> list[builtins.float]:
         value = self._raw(key, default)
         if value is default:
             return value
@@ -99,7 +108,7 @@ class Section:
             raise self.error(key, f"expected a list of {size}finite numbers, got {value!r}")
         return [float(v) for v in value]
 
-    def strs(self, key: str, default: Any = _MISSING) -> list[str]:
+    def strs(self, key: builtins.str, default: Any = _MISSING) -> list[builtins.str]:
         value = self._raw(key, default)
         if value is default:
             return value
@@ -107,7 +116,7 @@ class Section:
             raise self.error(key, f"expected a list of strings, got {value!r}")
         return list(value)
 
-    def section(self, key: str, default: Any = _MISSING) -> Section:
+    def section(self, key: builtins.str, default: Any = _MISSING) -> Section:
         value = self._raw(key, default)
         if value is default:
             return Section({}, self.file, ".".join(p for p in (self.path, key) if p))
@@ -115,7 +124,7 @@ class Section:
             raise self.error(key, f"expected a table, got {value!r}")
         return Section(value, self.file, ".".join(p for p in (self.path, key) if p))
 
-    def sections(self, key: str) -> Iterator[Section]:
+    def sections(self, key: builtins.str) -> Iterator[Section]:
         value = self._raw(key, [])
         if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
             raise self.error(key, "expected an array of tables ([[...]])")
@@ -123,7 +132,7 @@ class Section:
         for i, item in enumerate(value):
             yield Section(item, self.file, f"{base}[{i}]")
 
-    def reject_unknown(self, allowed: set[str]) -> None:
+    def reject_unknown(self, allowed: set[builtins.str]) -> None:
         """Typos in config keys silently fall back to defaults otherwise; refuse them."""
         unknown = sorted(set(self.data) - allowed)
         if unknown:

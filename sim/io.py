@@ -44,7 +44,7 @@ def sweep_stale_temps(path: Path | str, *, stale_after_s: float = STALE_TEMP_S) 
     this module makes for exactly this target match; files of other targets are never touched."""
     path = Path(path)
     pattern = re.compile(re.escape(f".{path.name}.") + rf"(?:(\d+)\.)?{_RANDOM}\.tmp")
-    removed = []
+    removed: list[Path] = []
     try:
         entries = list(os.scandir(path.parent))
     except OSError:
@@ -75,7 +75,7 @@ def sweep_stale_temps(path: Path | str, *, stale_after_s: float = STALE_TEMP_S) 
 
 
 @contextmanager
-def atomic_path(path: Path | str, *, mode: int | None = None) -> Iterator[Path]:
+def atomic_path(path: str | os.PathLike[str], *, mode: int | None = None) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; on success it is renamed onto ``path``.
 
     ``mode``: permission bits of the result (e.g. ``0o600`` for keys and tokens: the temp file is
@@ -104,7 +104,7 @@ def atomic_path(path: Path | str, *, mode: int | None = None) -> Iterator[Path]:
             os.unlink(tmp)
 
 
-def write_bytes_atomic(path: Path | str, payload: bytes, *, mode: int | None = None) -> None:
+def write_bytes_atomic(path: str | os.PathLike[str], payload: bytes, *, mode: int | None = None) -> None:
     """Write ``payload`` to ``path`` atomically (:func:`atomic_path`, ``mode`` as there)."""
     with atomic_path(path, mode=mode) as tmp:
         tmp.write_bytes(payload)

@@ -20,7 +20,7 @@ import json
 import logging
 import os
 import xml.etree.ElementTree as ET
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -212,7 +212,7 @@ def stamped(attrs: Mapping[str, Any], obj: str) -> dict[str, Any]:
     ``hand``) and object as they are now. What ``attrs`` has is kept: a result made elsewhere
     keeps what it was made with."""
     hand = str(attrs.get("hand") or "") or None
-    makers = {"versions": package_versions, "code_version": code_version,
+    makers: dict[str, Callable[[], Any]] = {"versions": package_versions, "code_version": code_version,
               "asset_sha256": lambda: asset_hashes(hand, obj)}
     return {**attrs, **{k: makers[k]() for k in PROVENANCE if k not in attrs}}
 

@@ -98,6 +98,7 @@ def evaluate_on_arm(arm: ArmConfig, hand: Hand, obj: ObjectAsset, grasps: GraspS
     validator = Validator(hand, obj, cfg)
     scene = ArmScene(arm, hand, obj, contact=cfg.common.contact, servos=validator.servos)
     table = scene.table
+    assert table is not None   # the scene above has the default table
     (cx, cy), (hx, hy) = table.center_xy_m, table.half_size_xy_m
     poses = resting_poses(obj)
     places = sample_placements(obj, poses, placements, seed=seed,
@@ -148,6 +149,7 @@ def _plan_and_simulate(scene: ArmScene, settled: mujoco.MjData, palm_pos: np.nda
     plan_s = time.perf_counter() - t0
     if plan.failure is not None:
         return ArmGraspResult(**base, failure=plan.failure, detail=plan.detail, plan_s=plan_s)
+    assert plan.approach is not None   # a plan without a failure has its waypoints
     t0 = time.perf_counter()
     sim = simulate_plan(scene, settled, plan, stage.pregrasp, stage.squeeze, timing=timing,
                         **limits)

@@ -116,6 +116,7 @@ class ArmScene:
         flange = arm_model.site(self.arm.flange_site)
         site = world.site(ARM_PREFIX + self.arm.flange_site)
         mount = self.hand.config.mount
+        assert mount is not None   # __init__ refused a hand without one
         pos, quat = pose_mul(flange.pos.copy(), flange.quat.copy(), mount.pos, mount.quat_wxyz)
         hand_frame = site.parent.add_frame(pos=pos, quat=quat)
         hand_spec = self.hand.spec()

@@ -104,6 +104,8 @@ def settle_object(scene: ArmScene, pos: np.ndarray, quat_wxyz: np.ndarray, *,
 
 
 def _schedule(plan: ArmPlan, t: ArmTiming) -> tuple[np.ndarray, np.ndarray]:
+    # a successful plan (simulate_plan refuses a failed one) has every waypoint
+    assert plan.pregrasp is not None and plan.approach is not None and plan.lift is not None
     keys = [plan.home, plan.pregrasp, *plan.approach[1:]]
     times = [0.0, t.to_pregrasp_s]
     n_way = len(plan.approach) - 1
@@ -154,6 +156,8 @@ def simulate_plan(scene: ArmScene, settled: mujoco.MjData, plan: ArmPlan, pregra
                 return ArmOutcome(False, "pushed", float(np.linalg.norm(pos - start_pos)), 0.0, 0.0,
                                   times, keys, d.qpos.copy())
             ref = _in_palm(scene, d)
+    # the schedule ends a lift and a hold after t_closed, so the loop took the reference
+    assert ref is not None
     pos, _ = _object_pose(scene, d)
     lifted = float(pos[2] - start_pos[2])
     rel_pos, rel_quat = _in_palm(scene, d)
@@ -166,6 +170,7 @@ def simulate_plan(scene: ArmScene, settled: mujoco.MjData, plan: ArmPlan, pregra
 
 def _lift_height(scene: ArmScene, plan: ArmPlan) -> float:
     """How far the plan raises frame_palm (m)."""
+    assert plan.lift is not None and plan.approach is not None   # a successful plan
     top, _ = scene.site_pose(scene.qpos(plan.lift))
     grasp, _ = scene.site_pose(scene.qpos(plan.approach[-1]))
     return float(top[2] - grasp[2])

@@ -20,7 +20,7 @@ through :class:`PalmFrameHand` (what the checks use), so the model does not impo
 
 from __future__ import annotations
 
-from typing import Protocol
+from typing import Protocol, TypedDict
 
 import mujoco
 import numpy as np
@@ -78,7 +78,16 @@ def _palm_geoms_y(hand: PalmFrameHand, q: np.ndarray) -> float | None:
     return float((inv_p + centres @ quat_to_mat(inv_q).T)[:, 1].mean())
 
 
-def palm_frame_measures(hand: PalmFrameHand) -> dict[str, float | None]:
+class PalmFrameMeasures(TypedDict):
+    """What :func:`palm_frame_measures` returns (a plain dict at run time)."""
+
+    palm_geoms_y: float | None
+    palm_box_center_y: float
+    closed_pulp_y: float
+    closed_v_f_y: float
+
+
+def palm_frame_measures(hand: PalmFrameHand) -> PalmFrameMeasures:
     """The quantities the convention constrains, in frame_palm (metres; unit vectors):
     ``palm_geoms_y`` (open pose; None when the palm body has no geoms), ``palm_box_center_y``,
     ``closed_pulp_y`` (mean pulp position) and ``closed_v_f_y`` (mean pulp normal)."""

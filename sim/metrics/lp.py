@@ -81,7 +81,8 @@ class EqualityLP:
         h.passModel(self._lp)
         out = np.full(len(rhs), np.inf)
         for k, b in enumerate(rhs):
-            h.changeRowsBounds(len(b), self._eq_rows, b, b)
+            # the binding has it (highspy 1.16) but its stub file (_core/__init__.pyi) leaves it out
+            h.changeRowsBounds(len(b), self._eq_rows, b, b)  # type: ignore[attr-defined]
             h.run()
             if h.getModelStatus() == highspy.HighsModelStatus.kOptimal:
                 out[k] = h.getInfo().objective_function_value

@@ -13,6 +13,7 @@ import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 
 from sim.world.objects import (
@@ -71,7 +72,7 @@ def list_objects(max_workers: int | None = None) -> list[ObjectStatus]:
     Warnings (missing textures) are returned in the statuses rather than logged.
     """
     start = time.perf_counter()
-    statuses = [_status(name, "primitive", lambda n=name: load_primitive(n), None) for name in PRIMITIVES]
+    statuses = [_status(name, "primitive", partial(load_primitive, name), None) for name in PRIMITIVES]
     folders = ycb_folders()
     workers = max_workers or min(8, os.cpu_count() or 1)
     if folders:

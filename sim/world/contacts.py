@@ -84,5 +84,6 @@ def merge_nearby(points: np.ndarray, normals: np.ndarray, labels: np.ndarray | N
     count = np.bincount(inverse).astype(float)
     merged_p = np.stack([np.bincount(inverse, points[:, k]) for k in range(3)], 1) / count[:, None]
     merged_n = np.stack([np.bincount(inverse, normals[:, k]) for k in range(3)], 1)
-    merged_n /= np.linalg.norm(merged_n, axis=1, keepdims=True)
+    # (bincount with weights gives floats; numpy's stubs type it as int, so no in-place /=)
+    merged_n = merged_n / np.linalg.norm(merged_n, axis=1, keepdims=True)
     return merged_p, merged_n

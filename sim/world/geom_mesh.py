@@ -8,6 +8,8 @@ primitive geoms (box, sphere, ellipsoid, cylinder, capsule) are tessellated. Uni
 
 from __future__ import annotations
 
+from typing import cast
+
 import mujoco
 import numpy as np
 import trimesh
@@ -21,7 +23,10 @@ def concatenate(meshes: list[trimesh.Trimesh]) -> trimesh.Trimesh:
     """One mesh of ``meshes`` (pieces may overlap); an empty mesh for none."""
     if not meshes:
         return trimesh.Trimesh()
-    return meshes[0] if len(meshes) == 1 else trimesh.util.concatenate(meshes)
+    if len(meshes) == 1:
+        return meshes[0]
+    # trimesh annotates concatenate() as any Geometry; of Trimesh pieces it makes a Trimesh
+    return cast(trimesh.Trimesh, trimesh.util.concatenate(meshes))
 
 
 def geom_mesh(model: mujoco.MjModel, g: int, *, hull: bool) -> trimesh.Trimesh:

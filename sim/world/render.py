@@ -120,6 +120,6 @@ def geom_box_corners(model: mujoco.MjModel, data: mujoco.MjData, geoms: np.ndarr
     return np.vstack(out) if out else np.zeros((0, 3))
 
 
-def save_png(path: str | os.PathLike, rgb: np.ndarray) -> None:
+def save_png(path: str | os.PathLike[str], rgb: np.ndarray) -> None:
     """Write an RGB image to PNG atomically."""
     write_bytes_atomic(path, encode_png(rgb))

@@ -46,9 +46,10 @@ import logging
 import math
 import os
 import time
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import mujoco
 import numpy as np
@@ -75,6 +76,18 @@ __all__ = ["FORMAT_VERSION", "RestParams", "RestPose", "RestPoses", "rest_placem
 
 logger = logging.getLogger(__name__)
 Array = np.ndarray
+Vec3 = tuple[float, float, float]
+Quat = tuple[float, float, float, float]
+
+
+def _vec3(v: Iterable[Any]) -> Vec3:
+    """``v``'s entries as a tuple of floats (three, as the caller's data has them)."""
+    return cast(Vec3, tuple(map(float, v)))
+
+
+def _quat(v: Iterable[Any]) -> Quat:
+    """``v``'s entries as a tuple of floats (four, as the caller's data has them)."""
+    return cast(Quat, tuple(map(float, v)))
 
 FORMAT_VERSION = 1
 
@@ -111,7 +124,7 @@ class RestPose:
 
     @classmethod
     def from_json(cls, d: dict[str, Any]) -> RestPose:
-        return cls(down=tuple(map(float, d["down"])), quat_wxyz=tuple(map(float, d["quat_wxyz"])),
+        return cls(down=_vec3(d["down"]), quat_wxyz=_quat(d["quat_wxyz"]),
                    com_height_m=float(d["com_height_m"]), share=float(d["share"]),
                    upright=bool(d["upright"]), drift_deg=float(d["drift_deg"]))
 
@@ -177,7 +190,7 @@ def _compute(obj: ObjectAsset, p: RestParams, physics: PhysicsOptions,
                          np.round(down, 3), drift)
             continue
         up = rot_mat(quat)[:, 2]
-        poses.append(RestPose(down=tuple(map(float, down)), quat_wxyz=tuple(map(float, quat)),
+        poses.append(RestPose(down=_vec3(down), quat_wxyz=_quat(quat),
                               com_height_m=world.com_height_m(quat),
                               share=sum(randoms[i] for i in members) / max(p.drops, 1),
                               upright=bool(up[2] >= math.cos(math.radians(p.stable_deg))),
@@ -263,7 +276,7 @@ def resting_poses(obj: ObjectAsset, params: RestParams | None = None, *,
     return RestPoses(object_name=obj.name,
                      poses=tuple(RestPose.from_json(r) for r in doc["poses"]),
                      drops=int(doc["drops"]), settled=int(doc["settled"]),
-                     symmetry_axis=None if axis_doc is None else tuple(map(float, axis_doc)),
+                     symmetry_axis=None if axis_doc is None else _vec3(axis_doc),
                      seconds=time.perf_counter() - t0, cached=cached, key=key)
 
 

@@ -98,7 +98,7 @@ def _name_the_unnamed_mesh(root: ET.Element) -> list[str]:
     MuJoCo to reject."""
     meshes = [m for asset in root.iter("asset") for m in asset if m.tag == "mesh"]
     defined = {_default_name(m) for m in meshes}
-    wanted = {g.get("mesh") for g in root.iter("geom") if g.get("mesh")}
+    wanted = {name for g in root.iter("geom") if (name := g.get("mesh"))}
     missing = sorted(wanted - defined)
     unnamed = [m for m in meshes if "name" not in m.attrib and _default_name(m) not in wanted]
     if len(missing) != 1 or len(unnamed) != 1:
@@ -220,7 +220,7 @@ def diagnose_xml(path: Path | None) -> str:
         hints.append(f"mesh folder {mesh_dir} does not exist")
     defined = {tag: {_default_name(e) for e in root.iter(tag)} for tag in ("mesh", "material")}
     for tag in ("mesh", "material"):
-        wanted = {g.get(tag) for g in root.iter("geom") if g.get(tag)}
+        wanted = {name for g in root.iter("geom") if (name := g.get(tag))}
         undefined = sorted(wanted - defined[tag])
         if undefined:
             hints.append(f"geoms reference undefined {tag}(es) {undefined[:4]}"
