@@ -5,6 +5,9 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import time
+from collections.abc import Callable
+from typing import TypeVar
 
 import pytest
 
@@ -17,6 +20,56 @@ from tests.browser import chromium  # noqa: F401  (one session-wide browser for 
 def _menagerie_available() -> bool:
     root = ensure_menagerie_root()
     return root is not None and (root / "shadow_hand").is_dir()
+
+
+T = TypeVar("T")
+
+#: how long a test waits for an event a quiet machine sees within about a second (a reply, a
+#: zenoh route, a frame, a child's start): generous for a 2-core machine at load 4, and no cost
+#: when the event comes, since every wait ends on the event itself
+SOON_S = 60.0
+#: how long a whole child command (a CLI run, a recorder or bridge in its own process) may take
+#: before a test calls it hung: only a hang guard, for runs a quiet machine ends in seconds
+HANG_S = 300.0
+
+
+def wait_for(check: Callable[[], T], limit_s: float, what: str | Callable[[], str], *,
+             every_s: float = 0.02, unless: Callable[[], str | None] | None = None) -> T:
+    """Poll ``check()`` until it returns something truthy, and return that.
+
+    Waits on the event, not on a guess of how long it takes: ``limit_s`` only bounds a wait
+    for an event that never comes, so make it generous (many times the quiet-machine time).
+    Raises AssertionError naming ``what`` (a text, or a callable giving one at the failure,
+    e.g. with the counts seen) after ``limit_s`` seconds, or at once when ``unless()`` returns
+    a reason to stop waiting (e.g. "the process exited with status 1")."""
+    t_end = time.monotonic() + limit_s
+    while True:
+        got = check()
+        if got:
+            return got
+        why = unless() if unless is not None else None
+        if why or time.monotonic() > t_end:
+            text = what() if callable(what) else what
+            raise AssertionError(f"waited for {text}: {why}" if why
+                                 else f"waited {limit_s:g} s for {text} in vain")
+        time.sleep(every_s)
+
+
+def wait_for_match(entity: object, limit_s: float, what: str) -> None:
+    """Wait until a zenoh publisher (or querier) matches a subscriber (a queryable): the
+    route between two peers exists, so what is put (or asked) next is not sent into the void."""
+    wait_for(lambda: entity.matching_status.matching, limit_s,  # type: ignore[attr-defined]
+             what, every_s=0.005)
+
+
+def wait_for_queryable(session: object, key: str, limit_s: float, what: str) -> None:
+    """Wait until ``session`` knows a queryable answering ``key`` (its querier matches), with
+    no query sent: nothing is asked of the queryable, so its calls stay the test's own."""
+    querier = session.declare_querier(key)  # type: ignore[attr-defined]
+    try:
+        wait_for_match(querier, limit_s, what)
+    finally:
+        querier.undeclare()
 
 
 needs_menagerie = pytest.mark.skipif(not _menagerie_available(),

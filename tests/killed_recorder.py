@@ -11,6 +11,8 @@ import textwrap
 import time
 from pathlib import Path
 
+from tests.conftest import SOON_S
+
 REPO = Path(__file__).resolve().parents[1]
 
 #: records /hands and /state at 200 Hz to argv[1]; before each frame it prints "frames-started
@@ -42,23 +44,31 @@ _CHILD = textwrap.dedent("""
 """)
 
 
-def record_then_kill(path: Path, run_s: float, flush_interval_s: float | None = None
+def record_then_kill(path: Path, run_s: float | None = None,
+                     flush_interval_s: float | None = None, *, frames: int | None = None
                      ) -> tuple[int, int]:
-    """Record to ``path`` in a child process for ``run_s`` seconds after its first frame, kill
-    it with SIGKILL, and return (frames started, frames flushed) as it last reported them: the
-    file holds at least the flushed frames and at most the started ones."""
+    """Record to ``path`` in a child process for ``run_s`` seconds after its first frame, or
+    (``frames``) until it reports that many frames started — an event, however slowly a loaded
+    machine runs it — kill it with SIGKILL, and return (frames started, frames flushed) as it
+    last reported them: the file holds at least the flushed frames and at most the started
+    ones."""
     args = [sys.executable, "-c", _CHILD, str(path)]
     if flush_interval_s is not None:
         args.append(str(flush_interval_s))
     child = subprocess.Popen(args, cwd=REPO, env={**os.environ, "PYTHONPATH": str(REPO)},
                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        first = child.stdout.readline()   # the recording has started
+        first = line = child.stdout.readline()   # the recording has started
         assert first, child.stderr.read()
-        time.sleep(run_s)
+        if frames is None:
+            time.sleep(run_s)
+        while frames is not None and int(line.split()[0]) < frames:
+            line = child.stdout.readline()
+            assert line, child.stderr.read()
+            first += line
     finally:
         child.send_signal(signal.SIGKILL)
-        out, _ = child.communicate(timeout=10)
+        out, _ = child.communicate(timeout=SOON_S)   # SIGKILL: gone, its pipe at EOF
     assert child.returncode == -signal.SIGKILL
     lines = [ln.split() for ln in (first + out).splitlines() if len(ln.split()) == 2]
     started, flushed = map(int, lines[-1])

@@ -9,7 +9,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import struct
-import time
 
 import numpy as np
 import pytest
@@ -18,6 +17,7 @@ import zenoh
 from sim.paths import SHARED_ASSETS
 from teleop import keys
 from teleop.messages import JOINT_INDEX, HandFrame, encode
+from tests.conftest import SOON_S, wait_for, wait_for_match, wait_for_queryable
 
 CAPTURE = SHARED_ASSETS / "handdata" / "quest3_webxr" / "cap.min.js"
 pytestmark = pytest.mark.skipif(not CAPTURE.is_file(), reason=f"no hand capture {CAPTURE}")
@@ -47,9 +47,11 @@ class _Rig:
         self.client = keys.open_session(connect_ports=[port])
         self.bridge.start()
         self.k = keys.RigKeys(rig)
+        wait_for_queryable(self.client, self.k.control_cmd("status"), SOON_S,
+                           "the bridge's control queryable reaching the client")
 
     def query(self, cmd: str, payload: dict | None = None) -> dict:
-        return keys.query_json(self.client, self.k.control_cmd(cmd), payload)
+        return keys.query_json(self.client, self.k.control_cmd(cmd), payload, timeout_s=SOON_S)
 
     def close(self) -> None:
         self.bridge.close()
@@ -75,7 +77,7 @@ def _record(rig: _Rig, path, play) -> None:
     # a path is for in-process callers only (a remote caller names a file in recordings_dir)
     assert rig.bridge.control("start_recording", {"path": str(path), "overwrite": True})["ok"]
     n = play()
-    assert rig.bridge.wait_idle(received=n)
+    assert rig.bridge.wait_idle(SOON_S, received=n)
     assert rig.query("mark_grasp")["ok"]
     assert rig.query("stop_recording")["ok"]
 
@@ -197,9 +199,7 @@ def test_bad_input_is_counted_and_a_vanished_hand_holds(frames):
         # failed once on a loaded machine)
         pub = rig.client.declare_publisher(rig.k.hands,
                                            congestion_control=zenoh.CongestionControl.BLOCK)
-        t_end = time.perf_counter() + 5
-        while not pub.matching_status.matching and time.perf_counter() < t_end:
-            time.sleep(0.01)
+        wait_for_match(pub, SOON_S, "the client's /hands publisher reaching the bridge")
         good = [f for f in frames if f.right is not None][100:140]
         wrong = bytearray(encode(good[0]))
         wrong[4:6] = struct.pack("<H", 99)
@@ -209,11 +209,11 @@ def test_bad_input_is_counted_and_a_vanished_hand_holds(frames):
             pub.put(bad)
         for f in good[20:]:
             pub.put(encode(f))
-        assert rig.bridge.wait_idle(timeout_s=30.0, received=44), rig.bridge.status()["counts"]
+        assert rig.bridge.wait_idle(SOON_S, received=44), rig.bridge.status()["counts"]
         q_before = rig.bridge._q_target.copy()
         for k, f in enumerate(good[-5:]):
             pub.put(encode(dataclasses.replace(f, right=None, seq=10_000 + k)))
-        assert rig.bridge.wait_idle(received=49)
+        assert rig.bridge.wait_idle(SOON_S, received=49)
         st = rig.query("status")
         assert st["loop_running"]
         assert st["counts"]["malformed"] == 3 and st["counts"]["wrong_schema"] == 1
@@ -246,7 +246,7 @@ def test_control_object_commands_and_errors(frames):
         events = []
         sub = rig.client.declare_subscriber(rig.k.events,
                                             lambda s: events.append(s.payload.to_bytes()))
-        time.sleep(0.1)
+        wait_for_match(rig.bridge._pub_events, SOON_S, "the bridge's /events reaching the client")
         assert rig.query("choose_object", {"object": "cylinder"}) == {"ok": True,
                                                                        "object": "cylinder"}
         rig.bridge.scene.set_object_pose(np.array([0.0, 0.3, 0.2]), np.array([1.0, 0, 0, 0]))
@@ -259,7 +259,7 @@ def test_control_object_commands_and_errors(frames):
         assert not rig.query("frobnicate")["ok"]
         st = rig.query("status")
         assert st["object"] == "cylinder" and st["loop_running"]
-        time.sleep(0.2)
+        wait_for(lambda: len(events) >= 2, SOON_S, lambda: f"2 events; got {events}")
         import json
         types = [json.loads(e)["type"] for e in events]
         assert types == ["object_changed", "object_reset"]

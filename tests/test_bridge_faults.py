@@ -20,7 +20,6 @@ import resource
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
@@ -29,7 +28,7 @@ import pytest
 
 from teleop import keys
 from teleop.messages import HandFrame, encode
-from tests.conftest import needs_menagerie
+from tests.conftest import HANG_S, SOON_S, needs_menagerie, wait_for, wait_for_match
 
 pytestmark = needs_menagerie
 
@@ -84,7 +83,10 @@ class _Live:
                 json.loads(s.payload.to_bytes()))),
             self.client.declare_subscriber(k.state, lambda s: self.state_seqs.append(
                 json.loads(s.payload.to_bytes())["seq"]))]
-        self.pub = hands_publisher(self.client, RIG, 5.0)
+        self.pub = hands_publisher(self.client, RIG, SOON_S)
+        wait_for_match(self.pub, SOON_S, "the client's /hands publisher reaching the bridge")
+        for pub in (self.bridge._pub_events, self.bridge._pub_state):
+            wait_for_match(pub, SOON_S, f"the bridge's {pub.key_expr} reaching the client")
         self.sent = 0
 
     def send(self, frames: list[HandFrame]) -> None:
@@ -92,15 +94,10 @@ class _Live:
             self.pub.put(encode(f))
         self.sent += len(frames)
 
-    def wait_for(self, what: str, timeout_s: float = 20.0) -> list[dict]:
-        """The events of type ``what`` once there is one (empty after the timeout)."""
-        t_end = time.monotonic() + timeout_s
-        while time.monotonic() < t_end:
-            found = [e for e in self.events if e["type"] == what]
-            if found:
-                return found
-            time.sleep(0.01)
-        return []
+    def wait_for(self, what: str, limit_s: float = SOON_S) -> list[dict]:
+        """The events of type ``what`` once there is one (AssertionError after ``limit_s``)."""
+        return wait_for(lambda: [e for e in self.events if e["type"] == what], limit_s,
+                        lambda: f"a {what!r} event; got {[e['type'] for e in self.events]}")
 
     def close(self) -> None:
         for sub in self._subs:
@@ -137,13 +134,17 @@ def _disk_full_child(out: str, limit_bytes: int) -> None:
         started = live.bridge.control("start_recording")
         for k in range(0, 3000, 100):   # until the disk is "full"
             live.send([_shifted(frames[(k + i) % len(frames)], k + i) for i in range(100)])
-            if live.wait_for("recording_failed", 1.0):
+            # each batch processed (so recorded, or failed to be) before the next is sent
+            assert live.bridge.wait_idle(SOON_S, received=live.sent), live.bridge.status()
+            if live.bridge.status()["counts"].get("recording_failed"):
                 break
-        live.bridge.wait_idle(30.0, received=live.sent)
+        live.wait_for("recording_failed")   # the event has reached the client
         after = [_shifted(frames[i], 100_000 + i) for i in range(20)]
         live.send(after)
-        live.bridge.wait_idle(30.0, received=live.sent)
-        time.sleep(0.2)
+        assert live.bridge.wait_idle(SOON_S, received=live.sent), live.bridge.status()
+        wanted = set(range(100_000, 100_020))
+        wait_for(lambda: wanted <= set(live.state_seqs), SOON_S,   # their /state reached it too
+                 lambda: f"/state for frames 100000-100019; got {sorted(wanted & set(live.state_seqs))}")
         answered = sorted({s for s in live.state_seqs if s is not None and s >= 100_000})
         print(json.dumps({"started": started, "events": live.events, "answered": answered,
                           "status": live.bridge.status()}))
@@ -158,7 +159,7 @@ def test_a_full_disk_stops_the_recording_and_the_loop_goes_on(tmp_path) -> None:
     code = (f"from tests.test_bridge_faults import _disk_full_child; "
             f"_disk_full_child({str(tmp_path)!r}, {limit})")
     run = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True,
-                         timeout=120, env={**os.environ, "MUJOCO_GL": "egl"})
+                         timeout=HANG_S, env={**os.environ, "MUJOCO_GL": "egl"})
     assert run.returncode == 0, run.stderr[-3000:]
     seen = json.loads(run.stdout.strip().splitlines()[-1])
     assert seen["started"]["ok"], seen["started"]
@@ -212,7 +213,7 @@ def test_a_recorder_write_errors_are_one_line_and_leave_a_readable_file(tmp_path
 
     code = f"from tests.test_bridge_faults import _recorder_child; _recorder_child({str(tmp_path)!r})"
     run = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True,
-                         timeout=120)
+                         timeout=HANG_S)
     assert run.returncode == 0, run.stderr[-3000:]
     seen = json.loads(run.stdout.strip().splitlines()[-1])
     assert seen["header_error"] == f"{tmp_path / 'header.mcap'}: cannot write the recording: " \
@@ -240,7 +241,7 @@ def test_b_a_10_m_wrist_jump_is_limited_not_a_reset(frames, tmp_path, caplog) ->
         live.send([_shifted(frames[k], k) for k in range(20)])
         live.send([_shifted(frames[k], k, JUMP_M) for k in range(20, 25)])   # 10 m away...
         live.send([_shifted(frames[k], k) for k in range(25, 45)])           # ...and back
-        assert bridge.wait_idle(60.0, received=live.sent)
+        assert bridge.wait_idle(SOON_S, received=live.sent)
         assert bridge.control("stop_recording")["ok"]
         counts = bridge.status()["counts"]
         step_m = bridge.config.hand_max_step_m
@@ -283,16 +284,16 @@ def test_c_an_unstable_simulation_is_restored(frames, tmp_path, upset) -> None:
 
         def step(k0: int, n: int) -> None:
             live.send([_shifted(frames[k], k) for k in range(k0, k0 + n)])
-            t_end = time.monotonic() + 20
-            while bridge.counts["accepted"] < live.sent and time.monotonic() < t_end:
-                time.sleep(0.002)
+            wait_for(lambda: bridge.counts["accepted"] >= live.sent, SOON_S,
+                     lambda: f"{live.sent} frames accepted; counts {dict(bridge.counts)}",
+                     every_s=0.002)
             while bridge.step_once():
                 pass
 
         step(0, 20)
         upset(bridge)
         step(20, 20)
-        restored = live.wait_for("scene_restored", 5.0)
+        restored = live.wait_for("scene_restored")
         counts = bridge.status()["counts"]
         pos, _ = bridge.scene.object_pose()
         assert bridge.control("stop_recording")["ok"]

@@ -31,7 +31,7 @@ from dexaug.dashboard.jobs import JobQueue
 from sim.errors import DexaugError
 from sim.paths import REPO_ROOT
 from tests.browser import artifact_path, new_page
-from tests.conftest import needs_menagerie, needs_ycb
+from tests.conftest import HANG_S, SOON_S, needs_menagerie, needs_ycb, wait_for
 from tests.fake_results import arm_file_numbers, fake_result
 
 DICE = REPO_ROOT / "recordings" / "demo_062_dice.mcap"
@@ -54,14 +54,12 @@ def fake_job(payload: Any, progress) -> dict[str, Any]:
     return {"generated": arg, "passed": arg - 1, "report": None}
 
 
-def _wait_final(q: JobQueue, n: int, timeout_s: float = 60.0) -> list[dict[str, Any]]:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
+def _wait_final(q: JobQueue, n: int) -> list[dict[str, Any]]:
+    def final() -> list[dict[str, Any]] | None:
         jobs = q.snapshot()
-        if len(jobs) == n and all(j["state"] in ("done", "failed") for j in jobs):
-            return jobs
-        time.sleep(0.1)
-    raise AssertionError(f"jobs not finished in {timeout_s} s: {q.snapshot()}")
+        return jobs if len(jobs) == n and all(j["state"] in ("done", "failed") for j in jobs) \
+            else None
+    return wait_for(final, SOON_S, lambda: f"{n} finished jobs: {q.snapshot()}")
 
 
 def test_result_view_of_a_summary_without_the_demo_check(tmp_path: Path) -> None:
@@ -111,7 +109,7 @@ def _sessions_dir(tmp_path: Path, *extra: Path) -> Path:
 
 def _get(url: str) -> tuple[int, Any]:
     try:
-        with urllib.request.urlopen(url, timeout=30) as r:
+        with urllib.request.urlopen(url, timeout=SOON_S) as r:
             body = r.read()
             ctype = r.headers.get("Content-Type", "")
             return r.status, json.loads(body) if "json" in ctype else (ctype, body)
@@ -119,11 +117,19 @@ def _get(url: str) -> tuple[int, Any]:
         return exc.code, json.loads(exc.read())
 
 
+def _last_job_in(url: str, state: str) -> list[dict[str, Any]]:
+    """The dashboard's ``api/jobs`` once its last job is in ``state`` (waits SOON_S at most)."""
+    def jobs() -> list[dict[str, Any]] | None:
+        listed = _get(url + "api/jobs")[1]["jobs"]
+        return listed if listed and listed[-1]["state"] == state else None
+    return wait_for(jobs, SOON_S, f"the last job {state}", every_s=0.1)
+
+
 def _post(url: str, body: bytes) -> tuple[int, Any]:
     # the custom header the page sends: the dashboard refuses a POST without it (CSRF)
     req = urllib.request.Request(url, body, {"Content-Type": "application/json", "X-Dexaug": "1"})
     try:
-        with urllib.request.urlopen(req, timeout=30) as r:
+        with urllib.request.urlopen(req, timeout=SOON_S) as r:
             return r.status, json.loads(r.read())
     except urllib.error.HTTPError as exc:
         return exc.code, json.loads(exc.read())
@@ -161,12 +167,7 @@ def test_api_lists_errors_and_survives_a_failed_job(tmp_path: Path) -> None:
         # goes on answering
         status, doc = _post(url + "api/augment", json.dumps({"demo": dice["key"]}).encode())
         assert status == 200 and doc["job"]["state"] in ("queued", "running")
-        deadline = time.monotonic() + 30
-        while time.monotonic() < deadline:
-            jobs = _get(url + "api/jobs")[1]["jobs"]
-            if jobs[-1]["state"] == "failed":
-                break
-            time.sleep(0.1)
+        jobs = _last_job_in(url, "failed")
         assert jobs[-1]["error"] == f"{dice['id']}: FSG found no grasp"
         assert _get(url + "api/sessions")[0] == 200
 
@@ -188,8 +189,9 @@ def test_augment_a_demo_from_the_page(chromium, tmp_path: Path) -> None:
     with Dashboard(cfg) as dash:
         url = dash.start()
         page = new_page(chromium, https=False, console=console, viewport=(1200, 900))
+        page.set_default_timeout(SOON_S * 1000)   # its actions wait on the page's events
         page.goto(url)
-        page.wait_for_function("() => document.body.dataset.loaded === '1'", timeout=30_000)
+        page.wait_for_function("() => document.body.dataset.loaded === '1'", timeout=SOON_S * 1000)
         bad = page.locator(f".session[data-session='{RAW.name}'] .session-error")
         assert "raw input only" in bad.inner_text()
         assert page.locator(f".session[data-session='{RAW.name}'] .demo").count() == 0
@@ -229,6 +231,7 @@ def test_augment_a_demo_from_the_page(chromium, tmp_path: Path) -> None:
 
         href = row.locator("a.report-link").get_attribute("href")
         report = new_page(chromium, https=False)
+        report.set_default_timeout(SOON_S * 1000)
         report.goto(url.rstrip("/") + href)
         assert report.locator("#m-grasps-passed-validation").inner_text() == str(len(table))
         assert report.locator("#m-demonstration-grasp").inner_text() == shown["demo-grasp"]
@@ -242,7 +245,7 @@ def test_augment_a_demo_from_the_page(chromium, tmp_path: Path) -> None:
 
     with Dashboard(cfg) as again:   # a restarted dashboard shows the finished demo directly
         page.goto(again.start())
-        page.wait_for_function("() => document.body.dataset.loaded === '1'", timeout=30_000)
+        page.wait_for_function("() => document.body.dataset.loaded === '1'", timeout=SOON_S * 1000)
         assert "earlier" in row.locator(".done-note").inner_text()
         assert row.locator(".n-passed").inner_text() == shown["n-passed"]
         assert row.locator(".demo-grasp").inner_text() == shown["demo-grasp"]
@@ -256,7 +259,7 @@ def test_augment_a_demo_from_the_page(chromium, tmp_path: Path) -> None:
     other = dataclasses.replace(cfg, options=dataclasses.replace(opts, n=30))
     with Dashboard(other) as third:
         page.goto(third.start())
-        page.wait_for_function("() => document.body.dataset.loaded === '1'", timeout=30_000)
+        page.wait_for_function("() => document.body.dataset.loaded === '1'", timeout=SOON_S * 1000)
         note = row.locator(".done-note").inner_text()
         assert "other options" in note and f"{opts.n} grasps" in note, note
         assert row.locator(".n-passed").inner_text() == shown["n-passed"]
@@ -296,8 +299,9 @@ def test_put_a_result_on_an_arm_from_the_page(chromium, tmp_path: Path) -> None:
     with Dashboard(cfg) as dash:
         url = dash.start()
         page = new_page(chromium, https=False, console=console, viewport=(1200, 900))
+        page.set_default_timeout(SOON_S * 1000)   # its actions wait on the page's events
         page.goto(url)
-        page.wait_for_function(LOADED, timeout=30_000)
+        page.wait_for_function(LOADED, timeout=SOON_S * 1000)
         row = _dice_row(page)
         assert row.locator(".arm-result").count() == 0
         assert "other options" not in row.locator(".done-note").inner_text()
@@ -321,7 +325,7 @@ def test_put_a_result_on_an_arm_from_the_page(chromium, tmp_path: Path) -> None:
         assert page_numbers == (pairs, passed, _failure_text(failures),
                                 f"{100 * passed / pairs:.1f} %")
         href = shown.locator("a.arm-file").get_attribute("href")
-        with urllib.request.urlopen(url.rstrip("/") + href, timeout=30) as r:
+        with urllib.request.urlopen(url.rstrip("/") + href, timeout=SOON_S) as r:
             assert r.read() == path.read_bytes()
         shot = artifact_path("dashboard_arm.png")
         page.screenshot(path=str(shot), full_page=True)
@@ -330,7 +334,7 @@ def test_put_a_result_on_an_arm_from_the_page(chromium, tmp_path: Path) -> None:
 
     with Dashboard(cfg) as again:   # the catalog lists the arm file from disk
         page.goto(again.start())
-        page.wait_for_function(LOADED, timeout=30_000)
+        page.wait_for_function(LOADED, timeout=SOON_S * 1000)
         assert _arm_numbers(row.locator(".arm-result[data-arm='ur5e']")) == page_numbers
         (listed,) = _get(again.url + "api/sessions")[1]["sessions"][0]["demos"][0]["result"]["arms"]
         assert (listed["arm"], listed["placements"], listed["pairs"], listed["passed"],
@@ -365,7 +369,7 @@ def test_an_arm_jobs_progress_and_failure_show_on_the_page(chromium, tmp_path: P
     def gated_arm(payload: Any, progress) -> dict[str, Any]:
         calls.append(payload)
         progress("arm ur5e: 062_dice", 2, 5)
-        release.wait(30.0)
+        release.wait(HANG_S)   # the test releases it
         raise DexaugError("ur5e: the arm's model is not installed")
 
     cfg = DashboardConfig(_sessions_dir(tmp_path), tmp_path / "out",
@@ -374,17 +378,18 @@ def test_an_arm_jobs_progress_and_failure_show_on_the_page(chromium, tmp_path: P
     console: list[str] = []
     with Dashboard(cfg, target=fake_job, arm_target=gated_arm) as dash:
         page = new_page(chromium, https=False, console=console)
+        page.set_default_timeout(SOON_S * 1000)
         page.goto(dash.start())
-        page.wait_for_function(LOADED, timeout=30_000)
+        page.wait_for_function(LOADED, timeout=SOON_S * 1000)
         row = _dice_row(page)
         row.locator("input.arm-placements").fill("3")
         row.locator("button.arm-run").click()
         progress = row.locator(".arm-progress-text")
-        progress.filter(has_text="arm ur5e: 062_dice: 2 / 5").wait_for(timeout=20_000)
+        progress.filter(has_text="arm ur5e: 062_dice: 2 / 5").wait_for(timeout=SOON_S * 1000)
         assert row.locator("button.arm-run").count() == 0     # no second click while it runs
         release.set()
         error = row.locator(".arm-error")
-        error.wait_for(timeout=20_000)
+        error.wait_for(timeout=SOON_S * 1000)
         assert error.inner_text() == ("Putting on the arm failed: ur5e: the arm's model is "
                                       "not installed")
         assert row.locator("button.arm-run").count() == 1

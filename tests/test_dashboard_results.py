@@ -17,7 +17,8 @@ from pathlib import Path
 from dexaug.dashboard.server import Dashboard, DashboardConfig
 from dexaug.pipeline.options import AugmentOptions
 from tests.browser import artifact_path, new_page
-from tests.test_dashboard import _get, _post, _sessions_dir
+from tests.conftest import SOON_S
+from tests.test_dashboard import _get, _last_job_in, _post, _sessions_dir
 
 
 def _summary(folder: Path, demo: str, generated: int, passed: int) -> None:
@@ -75,11 +76,7 @@ def test_settings_round_trip_and_bad_values_are_refused(tmp_path: Path) -> None:
         # a job queued now runs with the settings of now
         (dice,) = [d for s in _get(url + "api/sessions")[1]["sessions"] for d in s["demos"]]
         job = _post(url + "api/augment", json.dumps({"demo": dice["key"]}).encode())[1]["job"]
-        for _ in range(300):
-            jobs = _get(url + "api/jobs")[1]["jobs"]
-            if jobs[-1]["state"] == "done":
-                break
-            __import__("time").sleep(0.1)
+        jobs = _last_job_in(url, "done")
         assert job["key"] == dice["key"] and jobs[-1]["result"]["generated"] == 37
 
 
@@ -89,7 +86,7 @@ def test_settings_need_the_pages_header(tmp_path: Path) -> None:
         req = urllib.request.Request(url + "api/settings", json.dumps({"n": 9}).encode(),
                                      {"Content-Type": "application/json"})
         try:
-            urllib.request.urlopen(req, timeout=10)
+            urllib.request.urlopen(req, timeout=SOON_S)
             raise AssertionError("a POST without X-Dexaug was accepted")
         except urllib.error.HTTPError as exc:
             assert exc.code == 403
@@ -118,8 +115,9 @@ def test_the_page_sends_its_settings_and_lists_the_results(chromium, tmp_path: P
     console: list[str] = []
     with _dashboard(tmp_path) as dash:
         page = new_page(chromium, https=False, console=console, viewport=(1200, 900))
+        page.set_default_timeout(SOON_S * 1000)   # its waits end on the page's events
         page.goto(dash.start())
-        page.wait_for_selector("body[data-loaded='1']", timeout=30_000)
+        page.wait_for_selector("body[data-loaded='1']", timeout=SOON_S * 1000)
         assert page.input_value("#set-n") == "5" and page.input_value("#set-table") == "demo"
         page.fill("#set-n", "120")
         page.select_option("#set-table", "off")

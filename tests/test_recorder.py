@@ -249,7 +249,9 @@ def test_chunks_are_time_bounded(tmp_path: Path) -> None:
 def test_killed_recorder_leaves_a_readable_file(tmp_path: Path,
                                                 caplog: pytest.LogCaptureFixture) -> None:
     path = tmp_path / "killed.mcap"
-    started, flushed = record_then_kill(path, 1.5)
+    # killed on the event (300 frames started: 1.5 s at 200 Hz, longer on a loaded machine),
+    # not after 1.5 s of wall time, which a starved child fills with fewer frames
+    started, flushed = record_then_kill(path, frames=300)
     assert started > 150  # about 300 at 200 Hz
 
     with caplog.at_level(logging.WARNING, logger="teleop.record.session"):

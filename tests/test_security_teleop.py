@@ -29,12 +29,12 @@ from teleop.input.access import access_policy
 from teleop.input.stream_ingest import StreamIngest
 from teleop.input.tls import ensure_certificate, local_addresses
 from teleop.input.web_ingest import WebIngest, WebIngestConfig
-from tests.conftest import needs_menagerie
+from tests.conftest import HANG_S, SOON_S, needs_menagerie, wait_for, wait_for_queryable
 
 TOKEN = "test-token-0123456789"
 
 
-def _in_thread(make: Callable[[], Coroutine[Any, Any, Any]], timeout_s: float = 30.0) -> Any:
+def _in_thread(make: Callable[[], Coroutine[Any, Any, Any]], timeout_s: float = HANG_S) -> Any:
     """Run a client coroutine on its own loop in its own thread (a Playwright sync fixture may
     hold this thread's loop); its exception is re-raised here."""
     box: dict[str, Any] = {}
@@ -46,7 +46,8 @@ def _in_thread(make: Callable[[], Coroutine[Any, Any, Any]], timeout_s: float = 
             box["exc"] = exc
     th = threading.Thread(target=run)
     th.start()
-    th.join(timeout_s)
+    th.join(timeout_s)   # a hang guard: every wait inside is on an event
+    assert not th.is_alive(), f"the client coroutine still runs after {timeout_s:g} s"
     if "exc" in box:
         raise box["exc"]
     return box["out"]
@@ -70,7 +71,8 @@ class _Page:
             self.calls.append((str(q.key_expr).rsplit("/", 1)[-1], json.loads(body or b"{}")))
             q.reply(q.key_expr, json.dumps({"ok": True, "path": "stand-in"}).encode())
         self.qbl = self.peer.declare_queryable(keys.RigKeys(rig).control, on_query)
-        time.sleep(0.2)
+        wait_for_queryable(self.ingest.session, keys.RigKeys(rig).control_cmd("mark_grasp"),
+                           SOON_S, "the stand-in control queryable reaching the ingest")
         self.base = f"http://127.0.0.1:{self.ingest.port}"
 
     def close(self) -> None:
@@ -92,10 +94,10 @@ def page_factory():
 
 
 async def _receive_type(ws: aiohttp.ClientWebSocketResponse, kind: str,
-                        timeout_s: float = 5.0) -> dict:
+                        timeout_s: float = SOON_S) -> dict:
     """The next text message of type ``kind`` (others, e.g. ``status``, skipped)."""
-    t_end = time.perf_counter() + timeout_s
-    while time.perf_counter() < t_end:
+    t_end = time.monotonic() + timeout_s
+    while time.monotonic() < t_end:
         msg = await ws.receive(timeout=timeout_s)
         if msg.type in (WSMsgType.CLOSE, WSMsgType.CLOSED, WSMsgType.CLOSING):
             raise AssertionError(f"socket closed ({ws.close_code}) before a {kind!r} message")
@@ -107,7 +109,7 @@ async def _receive_type(ws: aiohttp.ClientWebSocketResponse, kind: str,
 async def _hello(http: ClientSession, url: str, client_id: str, **kw) -> tuple[Any, dict]:
     ws = await http.ws_connect(url, **kw)
     await ws.send_str(json.dumps({"type": "hello", "client_id": client_id}))
-    msg = await ws.receive(timeout=5)
+    msg = await ws.receive(timeout=SOON_S)
     return ws, json.loads(msg.data)
 
 
@@ -255,8 +257,8 @@ def test_a_token_holder_takes_the_rig_over_from_a_squatter(page_factory, caplog)
         async with ClientSession() as http:
             squat, w1 = await _hello(http, f"{page.base}/ws", "squatter")
             head, w2 = await _hello(http, f"{page.base}/ws?token={token}", "headset")
-            replaced = await squat.receive(timeout=5)
-            closed = await squat.receive(timeout=5)
+            replaced = await squat.receive(timeout=SOON_S)
+            closed = await squat.receive(timeout=SOON_S)
             # a second tokenless client cannot take it back
             again, w3 = await _hello(http, f"{page.base}/ws", "squatter2")
             await head.send_str(json.dumps({"type": "control", "command": "mark_grasp",
@@ -294,7 +296,11 @@ def test_a_notice_cannot_inject_log_lines_or_counters(page_factory, caplog):
                                               "message": forged}))
             await ws.send_str(json.dumps({"type": "notice", "what": "no_webxr", "message": "x"}))
             await ws.send_str(json.dumps({"type": "stats"}))
-            await asyncio.sleep(0.3)
+            # the server reads a socket's messages in order: the stats message sent last
+            # counted means every notice before it was handled (logged, counted)
+            await asyncio.to_thread(
+                wait_for, lambda: page.ingest.stats()["counts"].get("page_stats"), SOON_S,
+                "the page's stats message handled")
             await ws.close()
     caplog.set_level(logging.WARNING, logger="teleop.input.web_ingest")
     _in_thread(notices)
@@ -346,13 +352,16 @@ def rig(tmp_path_factory):
     client = keys.open_session(connect_ports=[port])
     bridge.start()
     k = keys.RigKeys("secrig")
+    wait_for_queryable(client, k.control_cmd("status"), SOON_S,
+                       "the bridge's control queryable reaching the client")
 
     class Rig:
         pass
     r = Rig()
     r.bridge, r.client, r.root, r.port = bridge, client, root, port
     r.recordings = cfg.recordings_dir
-    r.query = lambda cmd, payload=None: keys.query_json(client, k.control_cmd(cmd), payload)
+    r.query = lambda cmd, payload=None: keys.query_json(client, k.control_cmd(cmd), payload,
+                                                        timeout_s=SOON_S)
     yield r
     client.close()
     bridge.close()
@@ -433,10 +442,8 @@ def test_a_failed_choose_object_keeps_the_scene_and_the_view(rig):
     st = rig.query("status")
     assert st["ok"] and st["object"] == name and st["view"] == view
     if view:   # the /view keeps streaming the old scene
-        t_end = time.perf_counter() + 5
-        while bridge.status()["counts"].get("views", 0) <= views0 and time.perf_counter() < t_end:
-            time.sleep(0.05)
-        assert bridge.status()["counts"].get("views", 0) > views0
+        wait_for(lambda: bridge.status()["counts"].get("views", 0) > views0, SOON_S,
+                 "a /view frame after the failed choose_object")
 
 
 def test_the_page_drives_the_bridge_with_the_token_and_names_only(rig):
@@ -460,11 +467,12 @@ def test_the_page_drives_the_bridge_with_the_token_and_names_only(rig):
                                             ("mark_grasp", {}), ("stop_recording", {}))):
                 await ws.send_str(json.dumps({"type": "control", "command": cmd, "id": k,
                                               "args": args, "token": TOKEN}))
-                out.append((await _receive_type(ws, "control_reply", 15.0))["result"])
+                out.append((await _receive_type(ws, "control_reply"))["result"])
             await ws.close()
             return out
     try:
-        time.sleep(0.3)
+        wait_for_queryable(ingest.session, keys.RigKeys("secrig").control_cmd("status"), SOON_S,
+                           "the bridge's control queryable reaching the ingest")
         replies = _in_thread(drive)
     finally:
         ingest.close()

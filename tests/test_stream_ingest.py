@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import socket
 import threading
-import time
 
 import numpy as np
 import pytest
@@ -17,6 +16,7 @@ from teleop import keys
 from teleop.input.stream_ingest import HTS_TO_WEBXR, HtsParser, StreamIngest
 from teleop.input.webxr import from_webxr_joints
 from teleop.messages import JOINT_INDEX, MessageError, decode
+from tests.conftest import SOON_S, wait_for, wait_for_match
 
 DERIVED = SHARED_ASSETS / "handdata" / "quest3_webxr" / "derived" / "quest3_hands_world.npz"
 pytestmark = pytest.mark.skipif(not DERIVED.is_file(), reason=f"no derived capture {DERIVED}")
@@ -81,22 +81,25 @@ def test_streamer_lines_arrive_as_hand_frames(packets, proto):
             got.append(decode(sample.payload.to_bytes()))
 
     sub = client.declare_subscriber(keys.RigKeys(f"hts{proto}").hands, on)
-    time.sleep(0.3)
     try:
+        wait_for_match(ingest._pub, SOON_S, "the ingest's /hands reaching the client")
         if proto == "udp":
             with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-                for _, _, text in pk:
+                for k, (_, _, text) in enumerate(pk, 1):
                     s.sendto(text.encode(), ("127.0.0.1", ingest.udp_port))
-                    time.sleep(0.002)
+                    # paced on the ingest's count, so a starved reader never overflows the
+                    # socket's buffer (datagrams over it are dropped)
+                    wait_for(lambda k=k: ingest.counts["datagrams"] >= k, SOON_S,
+                             f"datagram {k} read", every_s=0.0005)
                 s.sendto(b"Right wrist:, garbage", ("127.0.0.1", ingest.udp_port))
         else:
             with socket.create_connection(("127.0.0.1", ingest.tcp_port)) as s:
                 for _, _, text in pk:
                     s.sendall(text.encode() + b"\n")
                 s.sendall(b"Right wrist:, garbage\n")
-        t_end = time.perf_counter() + 10
-        while len(got) < len(pk) and time.perf_counter() < t_end:
-            time.sleep(0.02)
+        # the garbage line, sent last, read too: the frames may reach the client before it
+        wait_for(lambda: len(got) >= len(pk) and ingest.counts["bad_lines"] >= 1, SOON_S,
+                 lambda: f"{len(pk)} frames; got {len(got)}, counts {dict(ingest.counts)}")
     finally:
         sub.undeclare()
         client.close()

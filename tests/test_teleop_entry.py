@@ -12,14 +12,13 @@ so a hand swept through it would move it).
 from __future__ import annotations
 
 import dataclasses
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from teleop.messages import HandFrame
-from tests.conftest import needs_menagerie
+from tests.conftest import SOON_S, needs_menagerie, wait_for
 from tests.test_bridge_faults import _Live
 
 pytestmark = needs_menagerie
@@ -61,9 +60,8 @@ def _drive(live: _Live, frames: list[HandFrame]) -> list[tuple[int, float, bool]
     bridge = live.bridge
     start, _ = bridge.scene.object_pose()
     live.send(frames)
-    t_end = time.monotonic() + 30
-    while bridge.counts["accepted"] < live.sent and time.monotonic() < t_end:
-        time.sleep(0.002)
+    wait_for(lambda: bridge.counts["accepted"] >= live.sent, SOON_S,
+             lambda: f"{live.sent} frames accepted; counts {dict(bridge.counts)}", every_s=0.002)
     out = []
     while bridge.step_once():
         pos, _ = bridge.scene.object_pose()

@@ -7,7 +7,6 @@ import asyncio
 import json
 import ssl
 import threading
-import time
 
 import numpy as np
 import pytest
@@ -19,6 +18,7 @@ from teleop.input.web_ingest import WebIngest, WebIngestConfig
 from teleop.input.web_protocol import WS_HEADER_SIZE, pack_ws_frame, parse_ws_frame
 from teleop.input.webxr import hand_frame_from_webxr
 from teleop.messages import MessageError, decode
+from tests.conftest import HANG_S, SOON_S, wait_for, wait_for_match, wait_for_queryable
 
 
 def _hand(seed: int) -> np.ndarray:
@@ -88,7 +88,11 @@ def test_websocket_protocol_frames_control_refusal(tmp_path, caplog):
 
     qbl = peer.declare_queryable(keys.RigKeys(rig).control, on_query)
     view = peer.declare_publisher(keys.RigKeys(rig).view)
-    time.sleep(0.3)
+    # every route up before anything is sent (the events themselves, not a guess of their time)
+    wait_for_match(ingest._pub, SOON_S, "the ingest's /hands reaching the peer")
+    wait_for_match(view, SOON_S, "the peer's /view reaching the ingest")
+    wait_for_queryable(ingest.session, keys.RigKeys(rig).control_cmd("mark_grasp"), SOON_S,
+                       "the stand-in control queryable reaching the ingest")
     url = f"wss://127.0.0.1:{ingest.port}/ws"
 
     async def session() -> dict:
@@ -107,9 +111,9 @@ def test_websocket_protocol_frames_control_refusal(tmp_path, caplog):
             out["second"] = json.loads((await two.receive()).data)
             out["second_close"] = (await two.receive()).type
             view.put(b"\xff\xd8fakejpeg")
-            replies, views, t_end = [], [], time.perf_counter() + 5
-            while (len(replies) < 2 or not views) and time.perf_counter() < t_end:
-                msg = await ws.receive(timeout=5)
+            replies, views = [], []
+            while len(replies) < 2 or not views:
+                msg = await ws.receive(timeout=SOON_S)
                 if msg.type == WSMsgType.BINARY:
                     views.append(msg.data)
                 elif json.loads(msg.data)["type"] == "control_reply":
@@ -123,11 +127,10 @@ def test_websocket_protocol_frames_control_refusal(tmp_path, caplog):
         box: dict = {}
         th = threading.Thread(target=lambda: box.update(out=asyncio.run(session())))
         th.start()
-        th.join(30)
+        th.join(HANG_S)
+        assert not th.is_alive(), "the WebSocket client hung"
         out = box["out"]
-        t_end = time.perf_counter() + 5
-        while len(got) < 20 and time.perf_counter() < t_end:
-            time.sleep(0.02)
+        wait_for(lambda: len(got) >= 20, SOON_S, lambda: f"20 frames on /hands; got {len(got)}")
         stats = ingest.stats()
     finally:
         sub.undeclare()
