@@ -239,7 +239,7 @@ class Bridge(BridgeFaults, BridgeControl):
         if self._ever_tracked:  # before the first tracked frame the hand stays parked
             self.scene.set_hand_pose(self._limit_base(base), np.asarray(res.base_quat_wxyz, float),
                                      teleport=False)
-        self.scene.set_hand_ctrl(self._q_target)
+        self.scene.set_hand_ctrl(self._squeeze.ctrl(self._q_target, self._assist.level))
         with self._lock:
             self.counts["processed"] += 1
             if res.held:

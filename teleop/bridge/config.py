@@ -37,7 +37,7 @@ _BRIDGE_KEYS = {"state_rate_hz", "view_enabled", "view_rate_hz", "view_max_duty"
                 "deterministic", "hand_max_step_m", "floor", "entry_gap_s", "entry_arrive_m",
                 "entry_arrive_deg", "object_reset_below_m", "object_reset_beyond_m",
                 "object_reset_after_s", "assist_press_m", "assist_engage_s", "assist_ramp_s",
-                "assist_release_s", "servo_kp_scale"}
+                "assist_release_s", "assist_squeeze", "servo_kp_scale"}
 
 
 @dataclass
@@ -145,7 +145,8 @@ def load_bridge_config(path: Path | str | None = None) -> BridgeConfig:
             press_m=sec.float("assist_press_m", d.assist.press_m, min=0.0, max=0.05),
             engage_s=sec.float("assist_engage_s", d.assist.engage_s, min=0.0, max=5.0),
             ramp_s=sec.float("assist_ramp_s", d.assist.ramp_s, min=0.0, max=5.0),
-            release_s=sec.float("assist_release_s", d.assist.release_s, min=0.0, max=5.0)),
+            release_s=sec.float("assist_release_s", d.assist.release_s, min=0.0, max=5.0),
+            squeeze=sec.bool("assist_squeeze", d.assist.squeeze)),
     )
 
 

@@ -19,6 +19,10 @@ The cue. :class:`GraspCue` says whether the grasp meets what demo extraction nee
 stable grasp (the lead finger and ``min_fingers − 1`` others in contact for ``min_duration_s``,
 :class:`teleop.record.demos.DemoParams`), so the page can tell the operator "stable — mark it".
 
+The press makes contact; the force that holds a heavy object comes from the squeeze that
+ramps in with it (:mod:`teleop.bridge.grasp_squeeze`: the validator's grip, sized by the
+object's weight, on the joint targets; ``squeeze`` False leaves the press alone).
+
 Times are the simulation's (seconds), so a deterministic replay assists exactly as the live
 session did. ``press_m`` 0 switches the assist off (the cue stays).
 """
@@ -41,6 +45,9 @@ class AssistSettings:
     engage_s: float = 0.05
     ramp_s: float = 0.15
     release_s: float = 0.2
+    #: with the press, the validator's force-sized squeeze on the joint targets
+    #: (:mod:`teleop.bridge.grasp_squeeze`), ramped by the same level
+    squeeze: bool = True
 
 
 class GraspAssist:

@@ -12,7 +12,8 @@ the scene state a failed ``choose_object`` restores, and the retargeter is alway
 bridge's current surface.
 
 The fingers touching the object in the last published state drive the grasp assist (the press
-put on the snapped pad targets) and the page's cue (:attr:`SurfaceFeed.grasp_state`: stable,
+put on the snapped pad targets, and the squeeze planned when it engages:
+:mod:`teleop.bridge.grasp_squeeze`) and the page's cue (:attr:`SurfaceFeed.grasp_state`: stable,
 how long held, assist level), both started afresh with each new scene.
 """
 
@@ -23,6 +24,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from teleop.bridge.grasp_assist import GraspAssist, GraspCue
+from teleop.bridge.grasp_squeeze import GraspSqueeze
 from teleop.retarget.surface import ObjectSurface
 
 if TYPE_CHECKING:
@@ -47,8 +49,11 @@ class SurfaceFeed:
     _last_contacts: list[ContactRecord]
     _surface: ObjectSurface
     _assist: GraspAssist
+    _squeeze: GraspSqueeze
     _cue: GraspCue
-    #: For /state and the recording: {"grasp_stable": bool, "grasp_held_s": s, "assist": 0…1}.
+    _q_target: np.ndarray | None
+    #: For /state and the recording: {"grasp_stable": bool, "grasp_held_s": s, "assist": 0…1,
+    #: "grip_n": the planned squeeze's total normal force, N (0: none)}.
     grasp_state: dict[str, float | bool]
 
     def _attach_surface(self, obj: ObjectAsset) -> None:
@@ -57,9 +62,11 @@ class SurfaceFeed:
         self._surface = ObjectSurface.from_object(obj)
         lead = self.scene.hand.finger_names[0]
         self._assist = GraspAssist(self.config.assist)
+        self._squeeze = GraspSqueeze(self.scene.hand, obj, self.config.assist.squeeze)
         self._cue = GraspCue(lead)
         self.retargeter.press_m = 0.0
-        self.grasp_state = {"grasp_stable": False, "grasp_held_s": 0.0, "assist": 0.0}
+        self.grasp_state = {"grasp_stable": False, "grasp_held_s": 0.0, "assist": 0.0,
+                            "grip_n": 0.0}
 
     def _retarget(self, frame: HandFrame) -> RetargetResult:
         """``frame`` retargeted with the object's surface at its current simulated pose."""
@@ -72,8 +79,14 @@ class SurfaceFeed:
         touching = {c.finger for c in self._last_contacts if c.finger}
         stable, held_s = self._cue.update(t_s, touching)
         self.retargeter.press_m = self._assist.update(t_s, self._cue.grasp_s)
+        if self._assist.engaged and not self._squeeze.planned:
+            q = self._q_target if self._q_target is not None else self.scene.hand.open_pose
+            self._squeeze.plan(self.scene, q)
+        elif not self._assist.engaged and self._assist.level <= 0.0:
+            self._squeeze.reset()
         self.grasp_state = {"grasp_stable": stable, "grasp_held_s": round(held_s, 3),
-                            "assist": round(self._assist.level, 3)}
+                            "assist": round(self._assist.level, 3),
+                            "grip_n": round(self._squeeze.grip_n, 2)}
         base_p, base_q = self.scene.base_world_pose()
         sim_base = (base_p - self.config.world_offset_m, base_q)
         return self.retargeter.step_frame(frame, sim_base)
