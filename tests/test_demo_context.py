@@ -2,9 +2,11 @@
 
 The paper authors' own teleoperated demonstrations (``recordings/demos/human/``, imported from
 ``fsg_keyframes``: sugar box, bowl, dice) were recorded with the object resting on a table.
-Augmented with the defaults (``--n 200``, the default FSG budget), each gives at least 150 grasps,
-and every one keeps its palm box and contacts above that table and uses only the demo's fingers;
-turning table mode off lets grasps reach below it (so the check can fail)."""
+Augmented with the defaults but ``--n 64`` (the default FSG budget), each gives at least 48 grasps
+(the 3/4 that the defaults' ``--n 200`` must give, ≥ 150), and every one keeps its palm box and
+contacts above that table and uses only the demo's fingers; turning table mode off lets grasps
+reach below it (so the check can fail). Each grasp is checked on its own, so 64 a demo test the
+same rule as 200 for less FSG time."""
 
 from __future__ import annotations
 
@@ -24,6 +26,8 @@ from tests.conftest import needs_menagerie, needs_ycb
 HUMAN = REPO_ROOT / "recordings" / "demos" / "human"
 DEMO = HUMAN / "062_dice.json"
 pytestmark = [needs_menagerie, needs_ycb]
+#: grasps asked of each demo, and the 3/4 of them it must give
+N, MIN_KEPT = 64, 48
 
 
 def _lowest_elevation_m(hand: Hand, table, palm_pose: np.ndarray, points: np.ndarray) -> float:
@@ -37,13 +41,13 @@ def _lowest_elevation_m(hand: Hand, table, palm_pose: np.ndarray, points: np.nda
 def kept(request, tmp_path_factory):
     demo = load_demo(HUMAN / f"{request.param}.json")
     out = tmp_path_factory.mktemp("ctx")
-    summary = augment_demo(demo, out, AugmentOptions(n=200, gallery=0, validate=None), force=True)
+    summary = augment_demo(demo, out, AugmentOptions(n=N, gallery=0, validate=None), force=True)
     return demo, dataset.load(summary.dataset)[demo.object]
 
 
 def test_a_table_demo_augments_above_its_table_with_its_fingers(kept) -> None:
     demo, table = kept
-    assert demo.table is not None and len(table) >= 150
+    assert demo.table is not None and len(table) >= MIN_KEPT
     hand = Hand.load(demo.hand)
     plane = demo_table(demo, None)
     clearance = 0.0

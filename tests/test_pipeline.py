@@ -123,7 +123,8 @@ def test_session_to_validated_dataset_and_report(shadow, tmp_path: Path) -> None
     from dexaug.pipeline.summary import demo_grasp_text, finished
     from sim.validate.batch import cached_validator
 
-    opts = AugmentOptions(n=80, workers=2, time_budget_s=90.0, gallery=2)
+    # 40 grasps asked, ≥ 20 must pass: half of them (80 asked, ≥ 20 was a quarter); 39 pass
+    opts = AugmentOptions(n=40, workers=2, time_budget_s=90.0, gallery=2)
     (s,) = augment_session(CAN_SESSION, tmp_path, opts)
     assert s.passed >= 20, s
     tables = dataset.load(s.dataset)
