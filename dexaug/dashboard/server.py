@@ -5,7 +5,9 @@ Routes::
     GET  /                      the page (static/index.html, app.js)
     GET  /api/sessions          sessions, their demos (or why none), finished results, options
     GET  /api/jobs              every job: state, pipeline stage and progress, result or error
-    POST /api/augment           {"demo": KEY} → queue KEY's augmentation; the job as JSON
+    POST /api/augment           {"demo": KEY} → queue KEY's augmentation; the job as JSON;
+                                optional "n", "time_budget_s", "workers", "gallery" for this
+                                job, each within a ceiling (dashboard.jobs_bounds; else 400)
     POST /api/settings          {"n": N, "table": "demo"|"on"|"off", "validate": P|"none"}
                                 → the settings later augmentations use (dashboard.settings)
     GET  /api/results           every result folder under the output folder (dashboard.results)
@@ -50,6 +52,7 @@ from dexaug.dashboard.arm_jobs import ArmJob, parse_arm_request, run_arm_job
 from dexaug.dashboard.catalog import Catalog, result_view
 from dexaug.dashboard.guard import WILDCARDS, Guard
 from dexaug.dashboard.jobs import JobQueue, JobQueueFull, JobTarget, run_augmentation
+from dexaug.dashboard.jobs_bounds import parse_augment_request
 from dexaug.dashboard.results import list_results
 from dexaug.dashboard.settings import SettingsError, apply_settings, settings_json
 from dexaug.pipeline.arm_stage import DEFAULT_PLACEMENTS, MAX_PLACEMENTS
@@ -252,10 +255,13 @@ class Dashboard:
         return web.json_response({"results": results})
 
     async def _augment(self, request: web.Request) -> web.Response:
+        # every size is checked before anything is looked up or queued (jobs_bounds)
         try:
-            key = str((await request.json())["demo"])
-        except (ValueError, KeyError, TypeError):
+            key, opts = parse_augment_request(await request.json(), self.config.options)
+        except ValueError:
             return web.json_response({"error": 'expected JSON {"demo": KEY}'}, status=400)
+        except DexaugError as exc:
+            return web.json_response({"error": str(exc)}, status=400)
         entry = self.catalog.demo(key)
         if entry is None:
             return web.json_response({"error": f"no demo {key!r} (reload the page)"},
@@ -264,7 +270,7 @@ class Dashboard:
             return web.json_response({"error": entry.error}, status=409)
         try:
             job = self.jobs.submit(key, entry.demo.id,
-                                   (entry.demo, str(self.config.out_root), self.config.options))
+                                   (entry.demo, str(self.config.out_root), opts))
         except JobQueueFull as exc:
             return web.json_response({"error": str(exc)}, status=429)
         return web.json_response({"job": self._job_json(job.to_json())})

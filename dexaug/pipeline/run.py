@@ -9,7 +9,8 @@ reads differently when the demo grasp itself does not hold. Each demo gets its o
 ``summary.json``, which is written last: a folder with a summary made from the same demo,
 options and configs (:func:`run_key`) is finished, and re-running skips it (resumable); a run
 interrupted before the summary leaves only complete files (every write is atomic), and the next
-run redoes that demo.
+run redoes that demo. One run writes a folder at a time (:mod:`~dexaug.pipeline.result_lock`):
+a second run of the same demo waits for the first, then skips the finished demo.
 
 Why per-demo folders and not one growing file: demos are independent units of work (the
 dashboard and ``--watch`` start them one by one), and a failure in one never touches another's
@@ -47,6 +48,7 @@ from augment.fsg.table import TablePlane
 from augment.object_cloud import ObjectCloud, object_cloud
 from dexaug.pipeline.options import AugmentOptions, Progress, demo_dir, result_configs, run_key
 from dexaug.pipeline.report import write_report
+from dexaug.pipeline.result_lock import result_lock
 from dexaug.pipeline.summary import DemoSummary, demo_grasp_text, demo_verdict, finished
 from sim.demo import Demo, demo_to_json
 from sim.errors import DexaugError
@@ -206,6 +208,18 @@ def augment_demo(demo: Demo, out_root: Path | str, opts: AugmentOptions | None =
     if not force and (done := finished(folder, demo, opts)) is not None:
         log.info("%s: already augmented (%s), skipping", demo.id, folder)
         return done
+    # one run per folder at a time (result_lock): a run started beside this one waits, then
+    # finds the demo finished here and skips it
+    with result_lock(folder, demo.id):
+        if not force and (done := finished(folder, demo, opts)) is not None:
+            log.info("%s: augmented by another run meanwhile (%s), skipping", demo.id, folder)
+            return done
+        return _augment_locked(demo, folder, opts, progress)
+
+
+def _augment_locked(demo: Demo, folder: Path, opts: AugmentOptions,
+                    progress: Progress | None) -> DemoSummary:
+    """:func:`augment_demo`'s work, with ``folder``'s result lock held."""
     tick = progress or (lambda stage, done, total: None)
     configs = result_configs(demo)   # the inputs as they are now, before any stage reads them
     key = run_key(demo, opts, configs)
@@ -230,6 +244,16 @@ def write_result(folder: Path, c: Computed, opts: AugmentOptions, *, key: str,
     ``summary.json`` last, each atomically. The one place results become files: a caller that
     computed elsewhere (a Ray task) writes each folder once, here. ``unit_id`` and ``source``
     default to the demo's id and source."""
+    with result_lock(folder, unit_id or (demo.id if demo is not None else c.object)):
+        return _write_locked(folder, c, opts, key=key, configs=configs, demo=demo,
+                             unit_id=unit_id, source=source, progress=progress, assets=assets)
+
+
+def _write_locked(folder: Path, c: Computed, opts: AugmentOptions, *, key: str,
+                  configs: dict[str, str], demo: Demo | None, unit_id: str | None,
+                  source: str | None, progress: Progress | None,
+                  assets: tuple[Hand, ObjectAsset, ObjectCloud] | None) -> DemoSummary:
+    """:func:`write_result`'s work, with ``folder``'s result lock held."""
     tick = progress or (lambda stage, done, total: None)
     unit_id = unit_id if unit_id is not None else demo.id if demo is not None else c.object
     source = source if source is not None else str(demo.source) if demo is not None else ""

@@ -36,7 +36,9 @@ added, created inside ``recordings_dir`` and never over an existing file: a ``_2
 suffix is added), ``path`` and ``overwrite`` are refused, ``choose_object`` takes an id of
 the installed catalogue (a primitive or a YCB folder), never a file, and a resting pose is an
 integer ``rest`` and a finite ``yaw_deg``, nothing else (the index's range is checked against
-the object's poses before anything moves). In-process Python calls of
+the object's poses before anything moves). Sizes are bounded (issue #56): a payload over
+:data:`MAX_CONTROL_PAYLOAD_BYTES`, a mark of more than :data:`MAX_MARK_KEYS` keys, a command
+beyond :data:`MAX_PENDING_CONTROLS` waiting: refused with the value and range. In-process Python calls of
 :meth:`BridgeControl.control` (the CLI's ``--record PATH``, re-recording) are trusted.
 
 A failed ``choose_object`` changes nothing: the new scene is built first, and on failure the
@@ -82,13 +84,23 @@ from teleop.record.recorder import SessionRecorder
 from teleop.record.session_file import RecordingFailed
 from teleop.retarget.retargeter import Retargeter
 
-__all__ = ["COMMANDS", "BridgeControl"]
+__all__ = ["COMMANDS", "MAX_CONTROL_PAYLOAD_BYTES", "MAX_MARK_KEYS", "MAX_PENDING_CONTROLS",
+           "BridgeControl"]
 
 logger = logging.getLogger(__name__)
 Array = np.ndarray
 
 #: the bridge's control commands: the rig's common ones and the object mode switch
 COMMANDS: tuple[str, ...] = zkeys.CONTROL_COMMANDS
+#: the largest control payload (bytes of JSON) a remote caller may send: every command's
+#: arguments fit in a few hundred bytes, and ``mark_grasp`` copies its extra keys into an event
+#: that is published and recorded, so a bigger one would only grow every recording (issue #56)
+MAX_CONTROL_PAYLOAD_BYTES = 16 * 1024
+#: the most extra keys a remote ``mark_grasp`` may put into its event (a note, a label, ...)
+MAX_MARK_KEYS = 32
+#: the most remote commands waiting for the loop thread: each waits 10 s at most, so more would
+#: queue work the loop cannot reach before its callers give up
+MAX_PENDING_CONTROLS = 32
 #: the bridge attributes a scene build sets: saved before ``choose_object`` builds, restored
 #: when the build fails
 _SCENE_STATE = ("scene", "object_name", "_tip_fingers", "_object_home", "placement", "object_rest",
@@ -103,6 +115,10 @@ class _Pending:
         self.done = threading.Event()
         self.result: dict[str, Any] = {}
 
+
+
+class _Refused(ValueError):
+    """A remote control refused before it is parsed (its message is the whole reply)."""
 
 
 class BridgeControl:
@@ -151,8 +167,11 @@ class BridgeControl:
         key = str(query.key_expr)
         command = key.rsplit("/", 1)[-1]
         try:
-            payload = query.payload
-            args = json.loads(payload.to_bytes() or b"{}") if payload is not None else {}
+            raw = query.payload.to_bytes() if query.payload is not None else b""
+            if len(raw) > MAX_CONTROL_PAYLOAD_BYTES:   # refused unparsed: its size is the fault
+                raise _Refused(f"{command}: a payload of {len(raw)} bytes is refused: allowed 0 "
+                               f"to {MAX_CONTROL_PAYLOAD_BYTES} bytes")
+            args = json.loads(raw or b"{}")
             if not isinstance(args, dict):
                 raise ValueError("the payload must be a JSON object")
             if command == "status":
@@ -162,6 +181,9 @@ class BridgeControl:
                                                  f"{list(COMMANDS)}"}
             else:
                 result = self.control(command, args, timeout_s=10.0, trusted=False)
+        except _Refused as exc:   # the text, not the exception: a kept record holds the query
+            result = {"ok": False, "error": str(exc)}
+            logger.warning("refused remote control: %s", result["error"])
         except Exception as exc:
             result = {"ok": False, "error": f"{type(exc).__name__}: {one_line(str(exc))}"}
         query.reply(query.key_expr, json.dumps(result).encode())
@@ -176,6 +198,13 @@ class BridgeControl:
         if not trusted:
             try:
                 args = remote_args(command, args)
+                extra = len(args) if command == "mark_grasp" else 0
+                if extra > MAX_MARK_KEYS:
+                    raise ValueError(f"mark_grasp: {extra} extra keys are refused: allowed 0 "
+                                     f"to {MAX_MARK_KEYS} keys")
+                if self.loop_running and self._controls.qsize() >= MAX_PENDING_CONTROLS:
+                    raise ValueError(f"{command}: {self._controls.qsize()} controls already "
+                                     f"wait for the loop: allowed 0 to {MAX_PENDING_CONTROLS}")
             except ValueError as exc:
                 why = str(exc)   # not the exception: a kept log record would hold the query
                 logger.warning("refused remote control %s: %s", command, why)
