@@ -15,6 +15,7 @@ import math
 from typing import TYPE_CHECKING
 
 from dexaug.commands.argtypes import count, positive
+from dexaug.pipeline.exit_status import SHORT_SHARE, SHORT_STATUS
 from sim.errors import UsageError
 
 if TYPE_CHECKING:
@@ -31,12 +32,6 @@ __all__ = ["DEFAULT_GRASPS", "FSG_MAX_GRASPS_PER_S", "SHORT_SHARE", "SHORT_STATU
 #: so a result made from the dashboard and one made on the command line are the same run
 DEFAULT_GRASPS = 200
 
-#: a run that returns fewer than this share of ``--n`` grasps (e.g. stopped by ``--budget``)
-#: exits with :data:`SHORT_STATUS` after writing what it made: a shortfall of a few grasps is
-#: normal for a hard object, one of more than half means the request could not be met
-SHORT_SHARE = 0.5
-#: the exit status of a run that fell short (0: done, 1: failed, 2: usage or input error)
-SHORT_STATUS = 3
 
 #: FSG's ceiling, grasps per second per worker process, for the warning before a search whose
 #: ``--n`` no budget can meet: about 3x the fastest rate measured (5,000 grasps of 005 in 82 s on

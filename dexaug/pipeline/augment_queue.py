@@ -30,6 +30,8 @@ import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from dexaug.pipeline.exit_status import SHORT_SHARE, SHORT_STATUS
+
 __all__ = ["AugmentQueue", "CommandFactory"]
 
 log = logging.getLogger(__name__)
@@ -167,6 +169,10 @@ class AugmentQueue:
         took = f"{time.monotonic() - t0:.1f} s"
         if code == 0:
             self._say(logging.INFO, f"augmented {session} (exit code 0, {took})")
+        elif code == SHORT_STATUS:
+            self._say(logging.WARNING, f"augmented {session}, short of the grasps asked for "
+                      f"(exit code {code}: fewer than {SHORT_SHARE:.0%} of --n; {took}; log: "
+                      f"{log_path})")
         else:
             self._say(logging.WARNING, f"augmentation of {session} failed (exit code {code}, "
                       f"{took}; log: {log_path})")
