@@ -17,8 +17,12 @@ from pathlib import Path
 
 __all__ = ["PACKAGES", "code_version", "describe_code_version", "package_versions"]
 
-#: distribution names whose versions a result records (missing ones are left out)
-PACKAGES = ("dexaug", "mujoco", "mink", "numpy", "scipy", "h5py", "eclipse-zenoh", "mcap")
+#: distribution names whose versions a result records (missing ones are left out): everything
+#: that shapes a grasp or a recording — the simulator and IK (mujoco, mink and its QP solvers),
+#: the numerics (numpy, scipy; highspy solves the holding LPs), meshes (trimesh), the data files
+#: (h5py, mcap, foxglove-sdk writes the sessions) and the transport (eclipse-zenoh)
+PACKAGES = ("dexaug", "mujoco", "mink", "qpsolvers", "daqp", "numpy", "scipy", "highspy",
+            "trimesh", "h5py", "mcap", "foxglove-sdk", "eclipse-zenoh")
 #: the checkout this module runs from (sim/ is one level below it)
 _CODE_ROOT = Path(__file__).resolve().parent.parent
 _GIT_TIMEOUT_S = 5.0

@@ -483,3 +483,13 @@ def test_a_second_demo_run_does_not_overwrite_the_first(
     assert _run([*argv, "--overwrite"], capsys)[0] == 0
     assert written[-1] == first and json.loads((first / "summary.json").read_text()) == {
         "run": 2}
+
+
+def test_version_names_every_package_that_shapes_a_result() -> None:
+    """``--version`` (and every dataset's provenance) names the packages a grasp or a recording
+    depends on, foxglove-sdk, trimesh and highspy included (they were missing)."""
+    from dexaug.cli import version_text
+
+    text = version_text()
+    for name in ("mujoco", "mink", "highspy", "trimesh", "foxglove-sdk", "mcap", "eclipse-zenoh"):
+        assert f"{name} " in text, (name, text)
