@@ -7,7 +7,6 @@ replayed onto zenoh loopback into a real bridge); the bridge's recording-closed 
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 from rich.console import Console
@@ -15,7 +14,7 @@ from rich.console import Console
 from augment import dataset
 from dexaug.commands.teleop import _auto_augment
 from teleop.record.demos import extract_demos
-from tests.conftest import needs_menagerie, needs_ycb
+from tests.conftest import HANG_S, needs_menagerie, needs_ycb, wait_for
 from tests.test_demo_extraction import OBJECT, _record
 
 pytestmark = [needs_menagerie, needs_ycb]
@@ -27,13 +26,9 @@ def test_a_live_recording_is_augmented_into_a_dataset(tmp_path: Path) -> None:
     session = _record(tmp_path / "live.mcap", mark=False, on_recording_closed=hook)
     (demo,) = extract_demos(session)
     assert "thumb" in demo.fingers and len(demo.fingers) >= 2
-    deadline = time.monotonic() + 240.0
-    summaries: list[Path] = []
-    while time.monotonic() < deadline and not summaries:
-        summaries = list(out.glob("*/summary.json"))
-        time.sleep(1.0)
-    log = (out / f"{session.stem}.augment.log").read_text()
-    assert summaries, f"no summary after 240 s; augment log:\n{log}"
+    summaries = wait_for(lambda: list(out.glob("*/summary.json")), HANG_S,
+                         lambda: "a summary; augment log:\n"
+                         + (out / f"{session.stem}.augment.log").read_text(), every_s=0.5)
     tables = dataset.load(summaries[0].parent / "grasps.h5")
     table = tables[OBJECT]
     assert len(table) + (len(table.rejected) if table.rejected is not None else 0) > 0

@@ -14,7 +14,6 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
-import time
 
 import numpy as np
 import pytest
@@ -76,13 +75,12 @@ def test_an_object_no_grasp_can_hold_stops_fsg_at_once_with_one_line(shadow, bow
             return 100.0 * super().__call__(grasp)
 
     monkeypatch.setattr(pipeline, "SceneEffort", Heavier)
-    t0 = time.monotonic()
     with caplog.at_level(logging.WARNING, logger="dexaug.pipeline.run"):
         res = pipeline.generate_grasps(shadow, cloud, ws, n=20, seed=0, time_budget_s=120,
                                        hold_protocol="dgb")
     assert res.stopped == TOO_WEAK and not res.grasps
     assert res.stats["effort"] >= TOO_WEAK_AFTER
-    assert time.monotonic() - t0 < 60   # not the 120 s budget
+    # TOO_WEAK, not the 120 s budget, ended it: asserted by ``stopped`` above, not the clock
     (rec,) = [r for r in caplog.records if r.name == "dexaug.pipeline.run"]
     msg = rec.getMessage()
     assert "024_bowl (0.15 kg, dgb)" in msg and "force limits" in msg and "\n" not in msg

@@ -23,7 +23,7 @@ from sim.errors import DexaugError
 from sim.paths import REPO_ROOT
 from teleop.record.demos import extract_demos
 from teleop.record.recorder import SessionRecorder
-from tests.conftest import needs_menagerie, needs_ycb
+from tests.conftest import HANG_S, needs_menagerie, needs_ycb, wait_for
 
 CAN_SESSION = REPO_ROOT / "recordings" / "demo_005_tomato_soup_can.mcap"
 RAW_SESSION = REPO_ROOT / "recordings" / "synth_005_tomato_soup_can.mcap"
@@ -244,13 +244,12 @@ def test_watch_mode_augments_finished_sessions_only(tmp_path: Path) -> None:
                              "--out", str(out)], env=env, stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT)
     try:
-        time.sleep(3.0)
+        time.sleep(3.0)   # a negative check needs a window: six polls of the half file
         assert not list(out.glob("*/summary.json"))
         target.write_bytes(src)                       # the recorder closed it
-        deadline = time.monotonic() + 120
-        while time.monotonic() < deadline and not list(out.glob("*/summary.json")):
-            assert proc.poll() is None, proc.stdout.read().decode()
-            time.sleep(0.5)
+        wait_for(lambda: list(out.glob("*/summary.json")), HANG_S, "the watched session's summary",
+                 every_s=0.5, unless=lambda: None if proc.poll() is None
+                 else f"augment --watch exited: {proc.stdout.read().decode()}")
         (summary,) = out.glob("*/summary.json")
         doc = json.loads(summary.read_text())
         assert doc["object"] == "062_dice" and doc["generated"] > 0

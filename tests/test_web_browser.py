@@ -24,6 +24,7 @@ from sim.paths import SHARED_ASSETS
 from teleop import keys
 from teleop.messages import decode
 from tests.browser import artifact_path, iwer_build_dir, iwer_missing, new_page
+from tests.conftest import SOON_S, wait_for
 
 CAPTURE_DIR = SHARED_ASSETS / "handdata" / "quest3_webxr"
 CAPTURE = CAPTURE_DIR / "cap.min.js"
@@ -112,9 +113,8 @@ def test_quest3_replay_reaches_the_bridge_and_the_view_comes_back(chromium, capt
         page.evaluate("() => window.dexaug.session.end()")
         _wait(page, "!window.dexaug.stats.sessionActive", 10, "the session did not end")
         n_sent = _js(page, "window.dexaug.stats.framesSent")
-        deadline = time.perf_counter() + 5
-        while len(tap.frames) < n_sent and time.perf_counter() < deadline:
-            time.sleep(0.05)
+        wait_for(lambda: len(tap.frames) >= n_sent, SOON_S,
+                 lambda: f"{n_sent} frames at the zenoh tap (got {len(tap.frames)})")
         img_w = 0
         if bridge.view_active:
             _wait(page, "window.dexaug.stats.viewsReceived >= 10", 10, "too few view frames")
