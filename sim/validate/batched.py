@@ -91,11 +91,13 @@ class ProgramRunner:
         """One round: every pending Advance, grouped by length, one backend call per group;
         then each program of the group runs to its next request."""
         groups: dict[int, list[int]] = defaultdict(list)
+        pending: dict[int, Advance] = {}
         for sim, slot in enumerate(self.slots):
             if isinstance(slot.request, Advance):
                 groups[slot.request.nstep].append(sim)
+                pending[sim] = slot.request
         for nstep, ids in sorted(groups.items()):
-            self._advance(nstep, ids, [self.slots[i].request for i in ids])
+            self._advance(nstep, ids, [pending[i] for i in ids])
             for sim in ids:
                 self._resume(sim)
 
@@ -169,7 +171,7 @@ class BatchRunner(ProgramRunner):
         """Step one at a time, ramping controls and pinning objects between steps."""
         sc = self.scene
         ramp = [k for k, r in enumerate(reqs) if r.ctrl_from is not None]
-        pinned = [(ids[k], reqs[k].pin) for k, r in enumerate(reqs) if r.pin is not None]
+        pinned = [(ids[k], r.pin) for k, r in enumerate(reqs) if r.pin is not None]
         for step in range(nstep):
             for k in ramp:
                 self._ctrl[ids[k], sc.hand_act] = reqs[k].ctrl_at(step)

@@ -111,11 +111,21 @@ class DgbParams:
     rehearsal_calm_score: float
 
 
+def _pair(sec: Section, key: str) -> tuple[float, float]:
+    a, b = sec.floats(key, 2)  # floats() has checked the length
+    return a, b
+
+
+def _triple(sec: Section, key: str) -> tuple[float, float, float]:
+    a, b, c = sec.floats(key, 3)  # floats() has checked the length
+    return a, b, c
+
+
 def _contact(sec: Section) -> ContactParams:
-    friction = tuple(sec.floats("friction", 3))
+    friction = _triple(sec, "friction")
     if friction[0] <= 0.0:  # the grip force is weight / friction
         raise sec.error("friction", f"sliding friction must be > 0, got {friction[0]}")
-    solref, solimp = tuple(sec.floats("solref", 2)), tuple(sec.floats("solimp", 3))
+    solref, solimp = _pair(sec, "solref"), _triple(sec, "solimp")
     if solref[0] <= 0 or not 0 < solimp[0] <= solimp[1] < 1 or solimp[2] <= 0:
         raise sec.error("solref", f"expected solref time constant > 0 and 0 < dmin ≤ dmax < 1, "
                         f"width > 0; got solref {solref}, solimp {solimp}")
@@ -152,7 +162,7 @@ def _load_dgb(sec: Section) -> DgbParams:
                            force_limit=sec.float("servo_force_limit", min=1e-6), ctrl_limited=False)
     return DgbParams(
         object_mass_kg=mass_kg, contact=_contact(sec), servos=servos,
-        weld_solref=tuple(sec.floats("weld_solref", 2)),
+        weld_solref=_pair(sec, "weld_solref"),
         timestep_s=sec.float("timestep_s", min=1e-4, max=0.02), impratio=sec.float("impratio", min=1.0),
         noslip_iterations=sec.int("noslip_iterations", min=0),
         solver_iterations=sec.int("solver_iterations", min=1),

@@ -9,6 +9,7 @@ compared with the benchmark grasp by grasp. Units: metres, radians.
 
 from __future__ import annotations
 
+import builtins
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,7 +37,7 @@ class ReferenceGrasp:
     object: str
     index: int
     grasp: Grasp
-    verdicts: dict[str, dict[str, object]]
+    verdicts: dict[str, dict[str, builtins.object]]  # the field `object` shadows the builtin here
 
 
 def _pose(row: dict, key: str, where: str) -> tuple[np.ndarray, np.ndarray]:

@@ -25,7 +25,7 @@ findings the ``dexaug diagnose`` command prints. Units: metres, seconds, radians
 
 from __future__ import annotations
 
-from collections import Counter
+from collections import Counter, defaultdict
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -189,7 +189,8 @@ class _Recorder:
         dq = dq if dq[0] >= 0 else -dq
         angle = 2.0 * float(np.arctan2(np.linalg.norm(dq[1:]), dq[0]))
         axis = dq[1:] / (np.linalg.norm(dq[1:]) or 1.0)
-        contacts, support, points = [], Counter[str](), []
+        contacts, points = [], []
+        support: defaultdict[str, float] = defaultdict(float)   # weight share per finger
         for i in range(d.ncon):
             c = d.contact[i]
             g1, g2 = int(c.geom[0]), int(c.geom[1])

@@ -95,7 +95,7 @@ class GraspBench:
         return Contacts(near.pos[keep], near.normal[keep], near.dist[keep], near.body_a[keep],
                         near.force_n[keep])
 
-    def holds_every_load(self, near: Contacts, loads: np.ndarray) -> bool:
+    def holds_every_load(self, near: Contacts, loads: HoldLoads) -> bool:
         """:func:`sim.validate.targets.holds_every_load` (whether ``near`` can hold ``loads``)."""
         return holds_every_load(near, loads)
 

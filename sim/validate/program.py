@@ -53,6 +53,7 @@ class Advance:
 
     def ctrl_at(self, k: int) -> np.ndarray:
         """The hand controls of step k (0-based) of the ramp."""
+        assert self.ctrl_from is not None and self.ctrl_to is not None, "not a ramp"
         alpha = (k + 1) / self.nstep
         return (1 - alpha) * self.ctrl_from + alpha * self.ctrl_to
 

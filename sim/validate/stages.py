@@ -66,13 +66,18 @@ def grasp_stages(grasp: Grasp, convention: str, derive: Callable[[np.ndarray], G
     need_squeeze = convention == "dexaug" and grasp.squeeze is None
     targets = derive(q) if grasp.pregrasp is None or need_squeeze else None
     touch = q
-    if need_squeeze and through_touch and targets.touch is not None:
+    if need_squeeze and through_touch and targets is not None and targets.touch is not None:
         touch = targets.touch
         targets = derive(touch)
-    pregrasp = grasp.pregrasp if grasp.pregrasp is not None else targets.pregrasp
+    if grasp.pregrasp is not None:
+        pregrasp = grasp.pregrasp
+    else:
+        assert targets is not None  # derived whenever the grasp has no pregrasp
+        pregrasp = targets.pregrasp
     if convention == "bodex":
         return GraspStages(pregrasp, q, 2.0 * q - pregrasp, convention)
     if targets is None:
+        assert grasp.squeeze is not None  # a dexaug grasp without a squeeze has derived targets
         return GraspStages(pregrasp, q, grasp.squeeze, "given")
     squeeze = grasp.squeeze if grasp.squeeze is not None else targets.squeeze
     own_split = targets.pregrasp_own_split if grasp.pregrasp is None else None

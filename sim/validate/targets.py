@@ -348,7 +348,7 @@ def targets_from_contacts(scene: Scene, hand: Hand, q: np.ndarray, near: Contact
     ``n_bodies_near = 0`` and ``q`` for both targets.
     """
     m, d = scene.model, scene.data
-    rows, surface_rows, gaps, closest, normals = [], [], [], [], []
+    rows, surface_rows, gap_list, closest, normals = [], [], [], [], []
     jacp = np.zeros((3, m.nv))
     points = near.points_a
     for i in closest_per_body(near):
@@ -356,13 +356,13 @@ def targets_from_contacts(scene: Scene, hand: Hand, q: np.ndarray, near: Contact
         n = near.normal[i]
         rows.append(n @ jacp[:, scene.hand_dadr])
         surface_rows.append((np.eye(3) - np.outer(n, n)) @ jacp[:, scene.hand_dadr])
-        gaps.append(near.dist[i])
+        gap_list.append(near.dist[i])
         closest.append(points[i])
         normals.append(near.normal[i])
     if not rows:
         return GraspTargets(q, q, 0)
     jac = np.array(rows) * finger_mask
-    gaps = np.array(gaps)
+    gaps = np.array(gap_list)
     pinv = _damped_pinv(jac)
     pre = hand.clip(q + pinv @ (gaps - common.pregrasp_backoff_m))
     force_n = grip_force_n(np.array(closest), loads, common)

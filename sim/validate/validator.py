@@ -18,6 +18,7 @@ import numpy as np
 
 from sim.grasp import Grasp
 from sim.hand.model import Hand
+from sim.metrics.holding import HoldLoads
 from sim.validate.batched import BatchRunner, ProgramRunner, validate_batched
 from sim.validate.config import ValidateConfig
 from sim.validate.grasp_bench import GraspBench
@@ -47,7 +48,7 @@ class Validator(GraspBench):
         super().__init__(hand, obj, config)
         self._runners: dict[tuple[object, ...], ProgramRunner] = {}
 
-    def holds_every_load(self, near: Contacts, loads: np.ndarray) -> bool:
+    def holds_every_load(self, near: Contacts, loads: HoldLoads) -> bool:
         # looked up in this module, where the squeeze's contact widening has always found it
         return holds_every_load(near, loads)
 

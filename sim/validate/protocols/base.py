@@ -72,7 +72,7 @@ class Bench(Interface):
     def scene(self, protocol: str) -> Scene: ...
     def palm_world(self, grasp: Grasp) -> tuple[np.ndarray, np.ndarray]: ...
     def near_contacts(self, scene: Scene, search_m: float | None = None) -> Contacts: ...
-    def holds_every_load(self, near: Contacts, loads: np.ndarray) -> bool: ...
+    def holds_every_load(self, near: Contacts, loads: HoldLoads) -> bool: ...
     def derive_targets(self, scene: Scene, q: np.ndarray, down: np.ndarray | None = None, *,
                        sized_for: str = ..., own_pregrasp: bool = True) -> GraspTargets: ...
     def stages(self, grasp: Grasp, convention: str | None = None, *,
@@ -108,11 +108,11 @@ class Protocol(ABC):
     def hold_loads(self, obj: ObjectAsset, config: ValidateConfig) -> HoldLoads:
         """The loads it puts on ``obj`` (object frame) with the friction it simulates."""
 
-    def world_loads(self, bench: Bench, scene: Scene, down: np.ndarray | None) -> np.ndarray:
+    def world_loads(self, bench: Bench, scene: Scene, down: np.ndarray | None) -> HoldLoads:
         """The loads the squeeze is sized for, in the world of ``scene`` (the grasp placed)."""
         return loads_in_world(self.hold_loads(bench.obj, bench.config), scene)
 
-    def target_contacts(self, bench: Bench, scene: Scene, loads: np.ndarray) -> Contacts:
+    def target_contacts(self, bench: Bench, scene: Scene, loads: HoldLoads) -> Contacts:
         """The contacts the squeeze presses: every one within ``[common] contact_search_m``."""
         return bench.near_contacts(scene)
 

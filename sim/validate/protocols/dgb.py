@@ -57,7 +57,7 @@ class Dgb(Protocol):
         return HoldLoads(six_pushes(p.force_per_kg * mass_kg), np.asarray(obj.com_m, dtype=float),
                          p.contact.friction[0], p.contact.friction[1], self.name)
 
-    def target_contacts(self, bench: Bench, scene: Scene, loads: np.ndarray) -> Contacts:
+    def target_contacts(self, bench: Bench, scene: Scene, loads: HoldLoads) -> Contacts:
         """The bodies within ``[dgb] contact_search_m``, or within ``[common]``'s wider one when
         those cannot hold every push (:func:`sim.validate.targets.holds_every_load`)."""
         bench.scene(self.name)   # compiled before the contacts are read, as it always was

@@ -48,7 +48,7 @@ class LiftDrop(ClosingProtocol):
         return HoldLoads(loads, np.asarray(obj.com_m, dtype=float), friction[0], friction[1],
                          self.name)
 
-    def world_loads(self, bench: Bench, scene: Scene, down: np.ndarray | None) -> np.ndarray:
+    def world_loads(self, bench: Bench, scene: Scene, down: np.ndarray | None) -> HoldLoads:
         """The weight along ``down`` (None: −z) at the placed object's centre of mass."""
         return weight_loads(scene.obj_mass_kg, scene.data.xipos[scene.obj_body], bench.config.common,
                             down)
