@@ -19,19 +19,31 @@ The dashboard starts augmentations and lists the sessions on disk, so three atta
   site's request never carries it.
 
 Refusals are JSON ``{"error": ...}`` with 421 or 403, and one warning in the log.
+
+The loopback, token, Host and Origin rules are the project's one network-access policy,
+:mod:`teleop.net_access` (the headset page applies it too); this class words the refusals
+and adds the cookie and the CSRF checks.
 """
 
 from __future__ import annotations
 
-import hmac
-import ipaddress
 import logging
-import secrets
 import socket
 from collections.abc import Awaitable, Callable
-from urllib.parse import urlsplit
 
 from aiohttp import web
+
+from teleop.net_access import (
+    LOOPBACK_NAMES,
+    WILDCARDS,
+    host_name,
+    host_ok,
+    is_loopback,
+    new_token,
+    origin_ok,
+    token_ok,
+    token_required,
+)
 
 __all__ = ["Guard", "is_loopback"]
 
@@ -42,31 +54,8 @@ SAFE_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
 #: The custom header the dashboard's own page sends with every request.
 CSRF_HEADER, CSRF_VALUE = "X-Dexaug", "1"
 TOKEN_HEADER, TOKEN_QUERY = "X-Dexaug-Token", "token"
-LOOPBACK_NAMES = frozenset({"localhost", "127.0.0.1", "::1"})
-WILDCARDS = frozenset({"", "0.0.0.0", "::"})
 
 Handler = Callable[[web.Request], Awaitable[web.StreamResponse]]
-
-
-def is_loopback(host: str) -> bool:
-    """Whether a listen address reaches this machine only (a name other than ``localhost``
-    counts as reachable: it may resolve to any interface)."""
-    if host.lower() == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host.strip("[]")).is_loopback
-    except ValueError:
-        return False
-
-
-def _ip(text: str) -> ipaddress.IPv4Address | ipaddress.IPv6Address | None:
-    try:
-        addr = ipaddress.ip_address(text)
-    except ValueError:
-        return None
-    if isinstance(addr, ipaddress.IPv6Address) and addr.ipv4_mapped is not None:
-        return addr.ipv4_mapped   # a dual-stack socket reports IPv4 clients as ::ffff:a.b.c.d
-    return addr
 
 
 class Guard:
@@ -80,7 +69,7 @@ class Guard:
         if host in WILDCARDS:
             names |= {socket.gethostname().lower(), socket.getfqdn().lower()}
         self.names = frozenset(names - {""})
-        self.token: str | None = None if is_loopback(host) else secrets.token_urlsafe(24)
+        self.token: str | None = new_token() if token_required(host) else None
         self.port: int | None = None
 
     @property
@@ -114,23 +103,17 @@ class Guard:
 
     def _host_error(self, request: web.Request) -> str | None:
         header = request.headers.get("Host", "")
-        try:
-            name = urlsplit(f"//{header}").hostname
-        except ValueError:
-            name = None
+        name = host_name(header)
         if not name:
             return "a Host header naming this dashboard is required"
-        if name in self.names:
-            return None
         sock = request.transport.get_extra_info("sockname") if request.transport else None
-        ip = _ip(name)
-        if ip is not None and sock and ip == _ip(str(sock[0])):
-            return None   # the address the connection arrived on: not a rebound name
+        if host_ok(header, self.names, str(sock[0]) if sock else None):
+            return None
         return f"Host {name!r} is not a name this dashboard is served under"
 
     def _csrf_error(self, request: web.Request) -> str | None:
         origin = request.headers.get("Origin")
-        if origin is not None and origin.lower() != f"http://{request.headers['Host']}".lower():
+        if not origin_ok(origin, request.scheme, request.headers.get("Host")):
             return f"cross-site request refused (Origin {origin!r})"
         if request.content_type != "application/json":
             return f"expected a JSON body (Content-Type application/json), got {request.content_type!r}"
@@ -139,8 +122,7 @@ class Guard:
         return None
 
     def _matches(self, given: str | None) -> bool:
-        return (given is not None and self.token is not None
-                and hmac.compare_digest(given.encode(), self.token.encode()))
+        return token_ok(given, self.token)
 
     @staticmethod
     def _refuse(request: web.Request, status: int, error: str) -> web.Response:

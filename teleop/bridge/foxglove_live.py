@@ -23,7 +23,6 @@ watch, never publish or call anything.
 
 from __future__ import annotations
 
-import ipaddress
 import logging
 import threading
 import time
@@ -37,6 +36,7 @@ from foxglove.websocket import ChannelView, Client, ServerListener
 
 from sim.world.scene import HAND_PREFIX, Scene
 from teleop.messages import HandFrame
+from teleop.net_access import is_loopback
 from teleop.record import foxglove, schemas
 from teleop.record.contact_record import ContactRecord, contacts_payload
 
@@ -58,15 +58,9 @@ _OPERATOR_RGBA = (1.0, 0.8, 0.6, 0.6)
 
 def check_host(host: str) -> str:
     """``host`` when only this machine reaches it (``127.0.0.0/8``, ``::1``, ``localhost``);
-    ValueError for any other address, wildcards included (module docstring). The rule of
-    :func:`teleop.input.access.is_loopback`, not imported: ``teleop.input`` reaches
-    ``teleop.bridge`` (through ``teleop.synthetic``), so that import would close a cycle."""
-    try:
-        loopback = host.strip().lower() == "localhost" or \
-            ipaddress.ip_address(host.strip("[]")).is_loopback
-    except ValueError:
-        loopback = False
-    if not loopback:
+    ValueError for any other address, wildcards included (module docstring): the rule of
+    :func:`teleop.net_access.is_loopback`."""
+    if not is_loopback(host):
         raise ValueError(f"--foxglove-host {host}: the Foxglove server (foxglove-sdk) cannot "
                          "require a per-start token, so it listens on loopback only; from "
                          "another machine use an SSH tunnel (ssh -L 8765:127.0.0.1:8765 …)")

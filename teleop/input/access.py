@@ -16,6 +16,10 @@ mark a grasp) on the bridge, so anyone who can open it drives the rig. The rules
   domain — and a request with an ``Origin`` (a browser's WebSocket always has one) must come
   from the page itself (``<scheme>://<Host>``), so a foreign web page cannot open the socket.
 
+The rules themselves (loopback, token required, constant-time compare, Host, Origin) are the
+project's one network-access policy, :mod:`teleop.net_access`, which the dashboard applies too;
+this module adds the page's flags, token paths and refusals.
+
 :func:`access_middleware` applies the Host/Origin checks to every request and the token to the
 page and ``/ws``; refusals are one-line ``text/plain`` answers (421 wrong Host, 403 foreign
 Origin, 401 missing or wrong token) and a log line.
@@ -24,10 +28,7 @@ Origin, 401 missing or wrong token) and a log line.
 from __future__ import annotations
 
 import argparse
-import hmac
-import ipaddress
 import logging
-import secrets
 import socket
 from collections.abc import Awaitable, Callable, Iterable
 from dataclasses import dataclass
@@ -36,6 +37,16 @@ from aiohttp import web
 
 from teleop.input.background_server import WebIngestError
 from teleop.input.tls import local_addresses
+from teleop.net_access import (
+    LOOPBACK_NAMES,
+    WILDCARDS,
+    host_ok,
+    is_loopback,
+    new_token,
+    origin_ok,
+    token_ok,
+    token_required,
+)
 
 __all__ = ["AccessPolicy", "access_middleware", "access_policy", "add_listen_args", "clean_text",
            "is_loopback"]
@@ -48,17 +59,6 @@ LOOPBACK_HOST = "127.0.0.1"
 TOKEN_PATHS = ("/", "/ws")
 
 Handler = Callable[[web.Request], Awaitable[web.StreamResponse]]
-
-
-def is_loopback(host: str) -> bool:
-    """True for an address only this machine reaches (``127.0.0.0/8``, ``::1``, ``localhost``);
-    False for wildcards (``0.0.0.0``, ``::``, ``""``) and every other address or name."""
-    if host.strip().lower() == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host.strip("[]")).is_loopback
-    except ValueError:
-        return False
 
 
 def clean_text(text: object, max_chars: int = 200) -> str:
@@ -81,33 +81,21 @@ class AccessPolicy:
 
     def token_ok(self, presented: object) -> bool:
         """Whether ``presented`` is this start's token (constant-time comparison)."""
-        return isinstance(presented, str) and hmac.compare_digest(presented.encode(),
-                                                                  self.token.encode())
+        return token_ok(presented, self.token)
 
     def host_error(self, host_header: str | None) -> str | None:
         """Why a ``Host`` header is refused (None when it names this machine)."""
-        name = _host_name(host_header or "")
-        if name in self.hosts:
+        if host_ok(host_header, self.hosts):
             return None
         return (f"Host {clean_text(host_header, 80)!r} does not name this machine (expected one "
                 f"of {', '.join(sorted(self.hosts))})")
 
     def origin_error(self, origin: str | None, scheme: str, host_header: str | None) -> str | None:
         """Why an ``Origin`` header is refused (None when absent or the page's own origin)."""
-        if origin is None:
+        if origin_ok(origin, scheme, host_header):
             return None
         own = f"{scheme}://{host_header or ''}".lower()
-        if origin.strip().lower() == own:
-            return None
         return f"Origin {clean_text(origin, 80)!r} is not this page's ({own})"
-
-
-def _host_name(host_header: str) -> str:
-    """The host part of a ``Host`` header (``[::1]:8443`` → ``::1``, ``a:1`` → ``a``)."""
-    h = host_header.strip().lower()
-    if h.startswith("["):
-        return h[1:h.find("]")] if "]" in h else h
-    return h.rsplit(":", 1)[0] if h.count(":") == 1 else h
 
 
 def access_policy(host: str, token: str | None = None,
@@ -119,12 +107,10 @@ def access_policy(host: str, token: str | None = None,
     if token is not None and (len(token) < 8 or not token.isprintable() or " " in token):
         raise WebIngestError(f"token: expected at least 8 printable characters without spaces, "
                              f"got {len(token)} characters")
-    names = {"localhost", "127.0.0.1", "::1", socket.gethostname(), *local_addresses(),
-             *extra_hosts}
-    if host and host not in ("0.0.0.0", "::"):
+    names = {*LOOPBACK_NAMES, socket.gethostname(), *local_addresses(), *extra_hosts}
+    if host not in WILDCARDS:
         names.add(host)
-    return AccessPolicy(token=token or secrets.token_urlsafe(24),
-                        required=token is not None or not is_loopback(host),
+    return AccessPolicy(token=token or new_token(), required=token_required(host, token),
                         hosts=frozenset(n.lower().strip("[]") for n in names if n))
 
 

@@ -43,9 +43,9 @@ import zenoh
 
 from sim import transforms
 from teleop import keys as zkeys
-from teleop.input.access import is_loopback
 from teleop.input.webxr import NUM_WEBXR_JOINTS, WEBXR_JOINTS, from_webxr_joints
 from teleop.messages import HandFrame, HandState, MessageError, encode
+from teleop.net_access import is_loopback
 
 logger = logging.getLogger(__name__)
 Array = np.ndarray
