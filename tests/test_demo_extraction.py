@@ -249,13 +249,14 @@ def test_the_moment_of_a_bridged_run_has_the_thumb() -> None:
     """A gap-bridged run holds states inside its gaps; the fullest of those may lack the thumb
     (four fingers without it against thumb + two): the moment is taken among the states that
     meet the rule, never a thumbless demo of a thumb grasp."""
-    from teleop.record.demos import _best_in, _Track
+    from teleop.record.demo_track import Track
+    from teleop.record.demos import _best_in
 
     touching = [frozenset({"thumb", "forefinger", "middle"}), frozenset({"thumb", "middle"}),
                 frozenset({"forefinger", "middle", "ring", "little"}),
                 frozenset({"thumb", "forefinger", "middle"})]
     n = len(touching)
-    track = _Track(np.arange(n), np.arange(n) * 4_000_000, None, list(range(n)),
+    track = Track(np.arange(n), np.arange(n) * 4_000_000, None, list(range(n)),
                    [{}] * n, [[]] * n, touching)
     ok = np.array(["thumb" in f and len(f) >= 2 for f in touching])
     i = _best_in(track, 0, n, ok)

@@ -35,6 +35,10 @@ def _replay_args(p: argparse.ArgumentParser) -> None:
                    "dexaug/<rig>/… (letters, digits, _ and -)")
     p.add_argument("--connect", type=port, nargs="+", default=[7447],
                    help="bridge port(s) to connect to on 127.0.0.1")
+    p.add_argument("--object", metavar="ID",
+                   help="put this object on the bridge's table first (default: the session's "
+                   "object, so its grasps meet what they were made on; none: keep the "
+                   "bridge's)")
     p.add_argument("--object-mode", choices=("demo", "free"),
                    help="set the bridge's object mode first (default: the session's; free for "
                    "an older session that records none)")
@@ -49,9 +53,10 @@ def replay(args: argparse.Namespace, console: Console) -> int:
     """Publish a recorded session's hand tracking back onto zenoh (dexaug/<rig>/hands).
 
     With original timing (--rate 1.0), scaled, or as fast as possible (--rate max); the bridge
-    cannot tell a replay from a live headset. The bridge is first put in the session's object
-    mode (or --object-mode's). A session without hand frames is refused (exit status 2), and so
-    is a replay no bridge listens to within --wait-bridge-s (nothing is published).
+    cannot tell a replay from a live headset. The bridge is first given the session's object
+    (or --object's; exit status 2 when it refuses it) and put in the session's object mode (or
+    --object-mode's). A session without hand frames is refused (exit status 2), and so is a
+    replay no bridge listens to within --wait-bridge-s (nothing is published).
     """
     from teleop.bridge.session_mode import session_object_mode, tell_bridge
     from teleop.keys import free_tcp_port, open_session
@@ -68,6 +73,9 @@ def replay(args: argparse.Namespace, console: Console) -> int:
     session = open_session(free_tcp_port(), tuple(args.connect))
     try:
         _wait_for_bridge(session, args.rig, args.wait_bridge_s, args.connect)
+        obj = args.object or recording.metadata.get("object")
+        if obj:
+            _choose_object(session, args.rig, str(obj), console)
         if tell_bridge(session, args.rig, mode) is not None:
             console.print(f"bridge object mode: {mode}")
         sent = replay_session(args.file, session, args.rig, rate=args.rate)
@@ -75,6 +83,24 @@ def replay(args: argparse.Namespace, console: Console) -> int:
         session.close()
     console.print(f"replayed {sent} hand-tracking messages from {args.file}")
     return 0
+
+
+#: how long replay waits for the bridge to build the session's object's scene (seconds)
+CHOOSE_OBJECT_S = 120.0
+
+
+def _choose_object(session: zenoh.Session, rig: str, obj: str, console: Console) -> None:
+    """Put ``obj`` on the bridge's table (``choose_object``; a bridge that has it already
+    answers at once); UsageError (exit status 2) when the bridge refuses it, since hand
+    frames replayed onto another object record grasps of nothing."""
+    from teleop.bridge.session_mode import ask_bridge
+
+    reply = ask_bridge(session, rig, "choose_object", {"object": obj}, wait_s=CHOOSE_OBJECT_S,
+                       reply_s=CHOOSE_OBJECT_S)
+    if not reply.get("ok"):
+        raise UsageError(f"the bridge of rig {rig!r} did not take the session's object {obj!r}: "
+                         f"{reply.get('error')} (--object picks another)")
+    console.print(f"bridge object: {obj}")
 
 
 def _wait_for_bridge(session: zenoh.Session, rig: str, wait_s: float, ports: Sequence[int]) -> None:

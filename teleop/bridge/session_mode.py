@@ -29,7 +29,8 @@ from sim.errors import ConfigError
 from teleop import keys as zkeys
 from teleop.bridge.config import BridgeConfig, check_object_mode
 
-__all__ = ["session_config", "session_object_mode", "session_object_rest", "tell_bridge"]
+__all__ = ["ask_bridge", "session_config", "session_object_mode", "session_object_rest",
+           "tell_bridge"]
 
 logger = logging.getLogger(__name__)
 
@@ -84,23 +85,31 @@ def session_config(cfg: BridgeConfig, meta: dict[str, Any], source: Path | str,
                                table=_session_table(meta, source, cfg))
 
 
-def tell_bridge(client: zenoh.Session, rig: str, mode: str, *, wait_s: float = 5.0
-                ) -> dict[str, Any] | None:
-    """Ask the bridge of ``rig`` to switch to ``mode`` (``set_object_mode``); its reply, or
-    None with a warning when no bridge answered within ``wait_s`` (seconds: a freshly opened
-    peer sees the bridge's queryable only once the routes are up) or it refused."""
-    key = zkeys.RigKeys(rig).control_cmd("set_object_mode")
+def ask_bridge(client: zenoh.Session, rig: str, command: str, payload: dict[str, Any], *,
+               wait_s: float = 5.0, reply_s: float = 1.0) -> dict[str, Any]:
+    """Send the control ``command`` with ``payload`` to the bridge of ``rig``; its reply (``ok``
+    False and ``error`` when it refused, or when no bridge answered within ``wait_s`` seconds: a
+    freshly opened peer sees the bridge's queryable only once the routes are up). ``reply_s``:
+    how long one query waits for its answer — long enough for the command to finish (building
+    a scene for ``choose_object`` takes seconds), as a query that times out is sent again."""
+    key = zkeys.RigKeys(rig).control_cmd(command)
     t_end = time.perf_counter() + wait_s
     while True:
         try:
-            reply = zkeys.query_json(client, key, {"object_mode": mode}, timeout_s=1.0)
-            break
+            return zkeys.query_json(client, key, payload, timeout_s=reply_s)
         except RuntimeError as exc:
             if time.perf_counter() >= t_end:
-                logger.warning("%s: no bridge set the object mode to %r: %s", key, mode, exc)
-                return None
+                return {"ok": False, "error": f"no bridge answered {key}: {exc}"}
             time.sleep(0.1)
+
+
+def tell_bridge(client: zenoh.Session, rig: str, mode: str, *, wait_s: float = 5.0
+                ) -> dict[str, Any] | None:
+    """Ask the bridge of ``rig`` to switch to ``mode`` (``set_object_mode``); its reply, or
+    None with a warning when no bridge answered within ``wait_s`` seconds or it refused."""
+    reply = ask_bridge(client, rig, "set_object_mode", {"object_mode": mode}, wait_s=wait_s)
     if not reply.get("ok"):
-        logger.warning("%s: the bridge refused object mode %r: %s", key, mode, reply.get("error"))
+        logger.warning("the bridge of rig %r did not set object mode %r: %s", rig, mode,
+                       reply.get("error"))
         return None
     return reply

@@ -46,7 +46,6 @@ import functools
 import logging
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -54,7 +53,14 @@ from sim.demo import Demo, DemoError
 from sim.hand.model import Hand
 from sim.transforms import pose_inv, pose_mul
 from teleop.record.demo_quality import fragment_flag, slip_flag, table_in_object_frame
-from teleop.record.schemas import TOPIC_CONTACTS, TOPIC_STATE
+from teleop.record.demo_track import (
+    Track,
+    marked_state,
+    object_at,
+    object_changes,
+    read_track,
+    scene_breaks,
+)
 from teleop.record.session import Session, SessionError, open_session
 
 __all__ = ["DemoParams", "extract_demos"]
@@ -88,84 +94,6 @@ class DemoParams:
     lift_window_s: float = 1.0
 
 
-@dataclass
-class _Track:
-    """Per-state arrays of a session: log times (ns), the extraction clock (nanoseconds of
-    simulated time, see :func:`_clock_ns`) and its offset from the states' own ``t_s``, seq,
-    states, fingertip contacts."""
-
-    t_ns: np.ndarray
-    clock_ns: np.ndarray
-    offset_ns: np.ndarray | None
-    seq: list[int | None]
-    states: list[dict[str, Any]]
-    contacts: list[list[dict[str, Any]]]
-    fingers_touching: list[frozenset[str]]
-
-
-def _pairing(contacts: list[tuple[int, dict[str, Any]]]) -> str:
-    """How the ``/contacts`` of a state are found: ``"seq"`` (the step's seq and t_s), ``"sim"``
-    (t_s) or ``"log"`` (log time), the best every contacts message allows."""
-    if contacts and all("seq" in c for _, c in contacts):
-        return "seq"
-    if contacts and all(_finite(c.get("t_s")) for _, c in contacts):
-        return "sim"
-    return "log"
-
-
-def _finite(value: Any) -> bool:
-    return isinstance(value, int | float) and not isinstance(value, bool) and np.isfinite(value)
-
-
-def _step_key(log_ns: int, msg: dict[str, Any], pairing: str) -> Any:
-    if pairing == "seq":
-        return msg.get("seq"), msg.get("t_s")
-    return msg.get("t_s") if pairing == "sim" else log_ns
-
-
-def _clock_ns(states: list[dict[str, Any]], t_ns: np.ndarray
-              ) -> tuple[np.ndarray, np.ndarray | None]:
-    """Per state, integer nanoseconds on one monotone simulated clock (integers, like log times:
-    durations are exact differences), and its offset from the states' ``t_s`` (None when some
-    state has no ``t_s``: then the clock is the log time)."""
-    raw = [s.get("t_s") for s in states]
-    if not all(_finite(t) for t in raw):
-        return t_ns, None
-    t = np.array([round(float(v) * 1e9) for v in raw], np.int64)
-    clock = t.copy()
-    for j in np.flatnonzero(np.diff(t) < 0) + 1:  # the scene was rebuilt: sim time restarted
-        clock[j:] += clock[j - 1] - clock[j] + (t_ns[j] - t_ns[j - 1])
-    return clock, clock - t
-
-
-def _track(session: Session, fingers: tuple[str, ...]) -> _Track:
-    where = session.path
-    for topic in (TOPIC_STATE, TOPIC_CONTACTS):
-        if not session.counts.get(topic):
-            if session.truncated:
-                raise DemoError(f"{where}: no {topic} message survives: the file is "
-                                f"{session.cut_note}")
-            raise DemoError(f"{where}: no {topic} messages; the session holds raw input only "
-                            f"(record it through the bridge: `dexaug rerecord {where} OUT.mcap`)")
-    states = session.json_messages(TOPIC_STATE)
-    contacts = session.json_messages(TOPIC_CONTACTS)
-    pairing = _pairing(contacts)
-    by_step = {_step_key(t, c, pairing): c for t, c in contacts}
-    known = set(fingers)
-    t_ns, seq, st, con, touching = [], [], [], [], []
-    for t, s in states:
-        c = [x for x in by_step.get(_step_key(t, s, pairing), {}).get("contacts", [])
-             if x.get("finger") in known]
-        t_ns.append(t)
-        seq.append(s.get("seq"))
-        st.append(s)
-        con.append(c)
-        touching.append(frozenset(x["finger"] for x in c))
-    log_ns = np.asarray(t_ns, np.int64)
-    clock, offset = _clock_ns(st, log_ns) if st else (log_ns, None)
-    return _Track(log_ns, clock, offset, seq, st, con, touching)
-
-
 def _runs(ok: np.ndarray) -> list[tuple[int, int]]:
     """[start, stop) index ranges of the True runs of ``ok``."""
     edges = np.diff(np.concatenate([[0], ok.astype(np.int8), [0]]))
@@ -184,7 +112,7 @@ def _merged_runs(clock_ns: np.ndarray, ok: np.ndarray, max_gap_s: float) -> list
     return merged
 
 
-def _best_in(track: _Track, lo: int, hi: int, ok: np.ndarray) -> int:
+def _best_in(track: Track, lo: int, hi: int, ok: np.ndarray) -> int:
     """The grasp moment of the run [lo, hi): of its states that meet the rule (``ok``: the
     lead finger and enough others touching), the one with the most fingertips (the middle one
     of ties). Only those: a gap-bridged run also holds states inside its gaps, and the fullest
@@ -195,7 +123,7 @@ def _best_in(track: _Track, lo: int, hi: int, ok: np.ndarray) -> int:
     return int(best[len(best) // 2])
 
 
-def _demo_at(session: Session, track: _Track, i: int, hand: str, obj: str, how: str,
+def _demo_at(session: Session, track: Track, i: int, hand: str, obj: str, how: str,
              duration_s: float, run_end: int | None) -> Demo:
     s = track.states[i]
     joints = np.asarray(s["qpos"], float)
@@ -258,7 +186,7 @@ def extract_demos(path: Path | str, params: DemoParams | None = None) -> list[De
     if session.truncated:
         log.warning("%s is truncated at byte %d (recorder did not close it); using what is "
                     "readable", path, session.stop_offset)
-    track = _track(session, fingers)
+    track = read_track(session, fingers)
     if not len(track.t_ns):
         raise DemoError(f"{path}: no states")
     lead = fingers[0]
@@ -267,7 +195,7 @@ def extract_demos(path: Path | str, params: DemoParams | None = None) -> list[De
     clock = track.clock_ns
     free = meta.get("object_mode", "free") != "demo"
     runs = []
-    for lo, hi in _split_at(_merged_runs(clock, ok, p.max_gap_s), _scene_breaks(session, track)):
+    for lo, hi in _split_at(_merged_runs(clock, ok, p.max_gap_s), scene_breaks(session, track)):
         dur = (int(clock[hi - 1]) - int(clock[lo])) * 1e-9
         if dur >= p.min_duration_s:
             runs.append((lo, hi, dur, "stable contact"))
@@ -286,16 +214,17 @@ def extract_demos(path: Path | str, params: DemoParams | None = None) -> list[De
         moments[m] = ("grasp_mark", 0.0, None)
     if not moments:
         raise DemoError(f"{path}: no usable grasp: {_why_not(track, n_touch, ok, lead, p)}")
-    return [_demo_at(session, track, i, hand, obj, how, dur, end)
+    changes = object_changes(session, track)
+    return [_demo_at(session, track, i, hand, object_at(changes, i, obj), how, dur, end)
             for i, (how, dur, end) in sorted(moments.items())]
 
 
-def _heights_m(track: _Track, key: str, lo: int, hi: int) -> np.ndarray:
+def _heights_m(track: Track, key: str, lo: int, hi: int) -> np.ndarray:
     """World z (metres) of ``key`` (``"palm_pos_m"``, ``"object_pos_m"``) in states [lo, hi)."""
     return np.array([float(s[key][2]) for s in track.states[lo:hi]])
 
 
-def _lift_confirmed(track: _Track, lo: int, hi: int, p: DemoParams, free: bool) -> bool:
+def _lift_confirmed(track: Track, lo: int, hi: int, p: DemoParams, free: bool) -> bool:
     """Whether the hand lifted the grasp of the contact run [lo, hi) (:class:`DemoParams`).
 
     Free object: within the run (the fingers still on it) the object rose ``lift_confirm_m``
@@ -314,17 +243,6 @@ def _lift_confirmed(track: _Track, lo: int, hi: int, p: DemoParams, free: bool) 
     return bool(palm[hi - lo - 1:].max() - palm[0] >= p.lift_confirm_m)
 
 
-#: events after which the scene is not the one before: a contact run never spans them
-SCENE_BREAKS = ("scene_restored", "object_reset", "object_changed")
-
-
-def _scene_breaks(session: Session, track: _Track) -> list[int]:
-    """State indices at which the bridge re-placed the object or restored the scene
-    (:data:`SCENE_BREAKS`): a grasp cannot go on across them."""
-    return sorted({_marked_state(track, t, ev) for t, ev in session.events()
-                   if ev.get("type") in SCENE_BREAKS})
-
-
 def _split_at(runs: list[tuple[int, int]], breaks: list[int]) -> list[tuple[int, int]]:
     """``runs`` ([start, stop) state ranges) cut at every break index inside one: the part
     before ends at the break, the part after starts after it."""
@@ -339,14 +257,14 @@ def _split_at(runs: list[tuple[int, int]], breaks: list[int]) -> list[tuple[int,
     return out
 
 
-def _mark_states(session: Session, track: _Track, p: DemoParams, lead: str,
+def _mark_states(session: Session, track: Track, p: DemoParams, lead: str,
                  ok: np.ndarray) -> list[int]:
     """State indices of the ``grasp_mark`` events that have a usable state nearby."""
     out = []
     for t, ev in session.events():
         if ev.get("type") != "grasp_mark":
             continue
-        i = _marked_state(track, t, ev)
+        i = marked_state(track, t, ev)
         dt_ns = np.abs(track.clock_ns - track.clock_ns[i])
         snap = np.flatnonzero(ok & (dt_ns <= p.mark_snap_s * 1e9))
         win = np.flatnonzero(ok & (dt_ns <= p.mark_window_s * 1e9))
@@ -364,21 +282,7 @@ def _mark_states(session: Session, track: _Track, p: DemoParams, lead: str,
     return out
 
 
-def _marked_state(track: _Track, log_ns: int, event: dict[str, Any]) -> int:
-    """The state a ``grasp_mark`` (logged at ``log_ns``) names: by seq, else by simulated time,
-    else by log time (module docstring)."""
-    seq = (event.get("payload") or {}).get("seq")
-    hits = [i for i, s in enumerate(track.seq) if seq is not None and s == seq]
-    if hits:
-        return hits[-1]
-    last_logged = max(int(np.searchsorted(track.t_ns, log_ns, side="right")) - 1, 0)
-    if track.offset_ns is None or not _finite(event.get("t_s")):
-        return last_logged
-    t = round(float(event["t_s"]) * 1e9) + int(track.offset_ns[last_logged])  # that scene's
-    return max(int(np.searchsorted(track.clock_ns, t, side="right")) - 1, 0)
-
-
-def _why_not(track: _Track, n_touch: np.ndarray, ok: np.ndarray, lead: str,
+def _why_not(track: Track, n_touch: np.ndarray, ok: np.ndarray, lead: str,
              p: DemoParams) -> str:
     if not n_touch.any():
         return "no fingertip ever touched the object"

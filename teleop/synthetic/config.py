@@ -73,7 +73,7 @@ class SynthConfig:
     hold_s: float = 1.0
     release_s: float = 0.8
     retreat_s: float = 0.8
-    object_pos_m: tuple[float, float, float] = (0.45, 0.0, 0.80)
+    object_pos_m: tuple[float, float, float] = (0.35, 0.0, 0.80)
     object_rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
     head_pos_m: tuple[float, float, float] = (0.0, 0.0, 1.25)
     head_pitch_deg: float = 30.0
