@@ -9,6 +9,7 @@ one guard — refusing to publish into a network where no bridge subscribes, whi
 from __future__ import annotations
 
 import argparse
+import logging
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -85,21 +86,30 @@ def replay(args: argparse.Namespace, console: Console) -> int:
     return 0
 
 
+log = logging.getLogger(__name__)
+
 #: how long replay waits for the bridge to build the session's object's scene (seconds)
 CHOOSE_OBJECT_S = 120.0
 
 
 def _choose_object(session: zenoh.Session, rig: str, obj: str, console: Console) -> None:
-    """Put ``obj`` on the bridge's table (``choose_object``; a bridge that has it already
-    answers at once); UsageError (exit status 2) when the bridge refuses it, since hand
-    frames replayed onto another object record grasps of nothing."""
+    """Put ``obj`` on the bridge's table (``choose_object``, unless its ``status`` says it is
+    there already); UsageError (exit status 2) when the bridge refuses it, since hand frames
+    replayed onto another object record grasps of nothing. A subscriber that answers no
+    control (no bridge: a recorder, a viewer) is told nothing, and that is logged."""
     from teleop.bridge.session_mode import ask_bridge
 
-    reply = ask_bridge(session, rig, "choose_object", {"object": obj}, wait_s=CHOOSE_OBJECT_S,
-                       reply_s=CHOOSE_OBJECT_S)
-    if not reply.get("ok"):
-        raise UsageError(f"the bridge of rig {rig!r} did not take the session's object {obj!r}: "
-                         f"{reply.get('error')} (--object picks another)")
+    status = ask_bridge(session, rig, "status", {})
+    if status is None:
+        log.warning("nothing on rig %r answers bridge controls: the object is left as it is", rig)
+        return
+    if status.get("object") != obj:
+        reply = ask_bridge(session, rig, "choose_object", {"object": obj},
+                           wait_s=CHOOSE_OBJECT_S, reply_s=CHOOSE_OBJECT_S)
+        if reply is None or not reply.get("ok"):
+            why = "no reply" if reply is None else reply.get("error")
+            raise UsageError(f"the bridge of rig {rig!r} did not take the session's object "
+                             f"{obj!r}: {why} (--object picks another)")
     console.print(f"bridge object: {obj}")
 
 

@@ -86,12 +86,12 @@ def session_config(cfg: BridgeConfig, meta: dict[str, Any], source: Path | str,
 
 
 def ask_bridge(client: zenoh.Session, rig: str, command: str, payload: dict[str, Any], *,
-               wait_s: float = 5.0, reply_s: float = 1.0) -> dict[str, Any]:
+               wait_s: float = 5.0, reply_s: float = 1.0) -> dict[str, Any] | None:
     """Send the control ``command`` with ``payload`` to the bridge of ``rig``; its reply (``ok``
-    False and ``error`` when it refused, or when no bridge answered within ``wait_s`` seconds: a
-    freshly opened peer sees the bridge's queryable only once the routes are up). ``reply_s``:
-    how long one query waits for its answer — long enough for the command to finish (building
-    a scene for ``choose_object`` takes seconds), as a query that times out is sent again."""
+    False and ``error`` when it refused), or None when no bridge answered within ``wait_s``
+    seconds (a freshly opened peer sees the bridge's queryable only once the routes are up; a
+    subscriber that is no bridge has none). ``reply_s``: how long one query waits for its
+    answer — long enough for the command to finish, as a query that times out is sent again."""
     key = zkeys.RigKeys(rig).control_cmd(command)
     t_end = time.perf_counter() + wait_s
     while True:
@@ -99,7 +99,8 @@ def ask_bridge(client: zenoh.Session, rig: str, command: str, payload: dict[str,
             return zkeys.query_json(client, key, payload, timeout_s=reply_s)
         except RuntimeError as exc:
             if time.perf_counter() >= t_end:
-                return {"ok": False, "error": f"no bridge answered {key}: {exc}"}
+                logger.debug("no bridge answered %s: %s", key, exc)
+                return None
             time.sleep(0.1)
 
 
@@ -108,8 +109,8 @@ def tell_bridge(client: zenoh.Session, rig: str, mode: str, *, wait_s: float = 5
     """Ask the bridge of ``rig`` to switch to ``mode`` (``set_object_mode``); its reply, or
     None with a warning when no bridge answered within ``wait_s`` seconds or it refused."""
     reply = ask_bridge(client, rig, "set_object_mode", {"object_mode": mode}, wait_s=wait_s)
-    if not reply.get("ok"):
+    if reply is None or not reply.get("ok"):
         logger.warning("the bridge of rig %r did not set object mode %r: %s", rig, mode,
-                       reply.get("error"))
+                       "no bridge answered" if reply is None else reply.get("error"))
         return None
     return reply
