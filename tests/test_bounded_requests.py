@@ -22,18 +22,10 @@ import pytest
 
 from sim.paths import REPO_ROOT, SHARED_ASSETS
 from tests.conftest import SOON_S, needs_menagerie, needs_ycb, wait_for, wait_for_queryable
+from tests.dashboard_http import post_json
 
 DICE = REPO_ROOT / "recordings" / "demo_062_dice.mcap"
 CAPTURE = SHARED_ASSETS / "handdata" / "quest3_webxr" / "cap.min.js"
-
-
-def _post(url: str, body: bytes) -> tuple[int, Any]:
-    req = urllib.request.Request(url, body, {"Content-Type": "application/json", "X-Dexaug": "1"})
-    try:
-        with urllib.request.urlopen(req, timeout=SOON_S) as r:
-            return r.status, json.loads(r.read())
-    except urllib.error.HTTPError as exc:
-        return exc.code, json.loads(exc.read())
 
 
 def _get(url: str) -> Any:
@@ -84,7 +76,7 @@ def test_dashboard_refuses_augment_sizes_that_cannot_finish(dashboard, field, va
     """POST /api/augment with an out-of-range size: HTTP 400, one line naming the field, the
     value and the range; no job is queued. (Today's server ignores the field and queues.)"""
     url, key, target = dashboard
-    status, doc = _post(url + "api/augment", json.dumps({"demo": key, field: value}).encode())
+    status, doc = post_json(url + "api/augment", json.dumps({"demo": key, field: value}).encode())
     assert status == 400, (status, doc)
     error = doc["error"]
     assert "\n" not in error and f"'{field}'" in error and allowed in error, error
@@ -98,13 +90,13 @@ def test_dashboard_augment_sizes_in_range_reach_the_job(dashboard) -> None:
     """Sizes within the bounds are the job's options (the rest stays the dashboard's); an
     unknown field is refused by name rather than silently ignored."""
     url, key, target = dashboard
-    status, doc = _post(url + "api/augment", json.dumps({"demo": key, "n": 7, "workers": 1,
+    status, doc = post_json(url + "api/augment", json.dumps({"demo": key, "n": 7, "workers": 1,
                                                          "time_budget_s": 30}).encode())
     assert status == 200, doc
     wait_for(lambda: target.opts, SOON_S, "the job to run")
     (opts,) = target.opts
     assert (opts.n, opts.workers, opts.time_budget_s, opts.gallery) == (7, 1, 30.0, 0)
-    status, doc = _post(url + "api/augment", json.dumps({"demo": key, "passes": 3}).encode())
+    status, doc = post_json(url + "api/augment", json.dumps({"demo": key, "passes": 3}).encode())
     assert status == 400 and "'passes'" in doc["error"], doc
 
 
@@ -113,9 +105,9 @@ def test_dashboard_augment_sizes_in_range_reach_the_job(dashboard) -> None:
 def test_dashboard_settings_and_arm_sizes_are_bounded(dashboard) -> None:
     """The other job-shaping endpoints: the settings' n and an arm job's placements."""
     url, key, _ = dashboard
-    status, doc = _post(url + "api/settings", json.dumps({"n": 10**7}).encode())
+    status, doc = post_json(url + "api/settings", json.dumps({"n": 10**7}).encode())
     assert status == 400 and "'n'" in doc["error"] and "5000" in doc["error"], doc
-    status, doc = _post(url + "api/arm", json.dumps({"demo": key, "arm": "ur5e",
+    status, doc = post_json(url + "api/arm", json.dumps({"demo": key, "arm": "ur5e",
                                                      "placements": 10**6}).encode())
     assert status == 400 and "placements" in doc["error"] and "200" in doc["error"], doc
     assert _get(url + "api/jobs")["jobs"] == []

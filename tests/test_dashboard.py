@@ -32,6 +32,7 @@ from sim.errors import DexaugError
 from sim.paths import REPO_ROOT
 from tests.browser import artifact_path, new_page
 from tests.conftest import HANG_S, SOON_S, needs_menagerie, needs_ycb, wait_for
+from tests.dashboard_http import post_json
 from tests.fake_results import arm_file_numbers, fake_result
 
 DICE = REPO_ROOT / "recordings" / "demo_062_dice.mcap"
@@ -125,16 +126,6 @@ def _last_job_in(url: str, state: str) -> list[dict[str, Any]]:
     return wait_for(jobs, SOON_S, f"the last job {state}", every_s=0.1)
 
 
-def _post(url: str, body: bytes) -> tuple[int, Any]:
-    # the custom header the page sends: the dashboard refuses a POST without it (CSRF)
-    req = urllib.request.Request(url, body, {"Content-Type": "application/json", "X-Dexaug": "1"})
-    try:
-        with urllib.request.urlopen(req, timeout=SOON_S) as r:
-            return r.status, json.loads(r.read())
-    except urllib.error.HTTPError as exc:
-        return exc.code, json.loads(exc.read())
-
-
 @needs_menagerie
 @needs_ycb
 def test_api_lists_errors_and_survives_a_failed_job(tmp_path: Path) -> None:
@@ -161,11 +152,11 @@ def test_api_lists_errors_and_survives_a_failed_job(tmp_path: Path) -> None:
         assert dice["object"] == "062_dice" and "thumb" in dice["fingers"] and not dice["result"]
         status, (ctype, img) = _get(url + dice["thumbnail"].lstrip("/"))
         assert status == 200 and (img.startswith(b"\x89PNG") or b"no preview" in img), ctype
-        assert _post(url + "api/augment", b"{}")[0] == 400
-        assert _post(url + "api/augment", json.dumps({"demo": "nope"}).encode())[0] == 404
+        assert post_json(url + "api/augment", b"{}")[0] == 400
+        assert post_json(url + "api/augment", json.dumps({"demo": "nope"}).encode())[0] == 404
         # a job that fails as the pipeline would: the message reaches the API, the server
         # goes on answering
-        status, doc = _post(url + "api/augment", json.dumps({"demo": dice["key"]}).encode())
+        status, doc = post_json(url + "api/augment", json.dumps({"demo": dice["key"]}).encode())
         assert status == 200 and doc["job"]["state"] in ("queued", "running")
         jobs = _last_job_in(url, "failed")
         assert jobs[-1]["error"] == f"{dice['id']}: FSG found no grasp"
