@@ -1,5 +1,5 @@
-"""The README's code blocks: every ```python and ```bash block says whether it runs, and those
-that run, run.
+"""The code blocks of the README and the guides under docs/: every ```python and ```bash
+block says whether it runs, and those that run, run.
 
 Each such block is preceded by a marker line (an HTML comment, invisible on the rendered page):
 ``<!-- snippet: run -->`` or ``<!-- snippet: skip (why) -->``; a block without one fails
@@ -22,12 +22,13 @@ from pathlib import Path
 import pytest
 
 from sim.paths import REPO_ROOT
-from tests.conftest import needs_menagerie, needs_ycb
+from tests.conftest import HANG_S, needs_menagerie, needs_ycb
 
-README = REPO_ROOT / "README.md"
+#: the front door and its guides (docs/*.md; the decision records hold no runnable blocks)
+DOCUMENTS = (REPO_ROOT / "README.md", *sorted((REPO_ROOT / "docs").glob("*.md")))
 VENV = REPO_ROOT / ".venv"
 LANGUAGES = ("python", "bash")
-SNIPPET_TIMEOUT_S = 60
+SNIPPET_TIMEOUT_S = HANG_S   # a hang bound only: a block runs in seconds
 _FENCE = re.compile(r"^(?P<indent>\s*)```(?P<lang>\S*)\s*$")
 _MARKER = re.compile(r"^\s*<!--\s*snippet:\s*(?P<action>run|skip)\s*(?:\((?P<why>.*)\))?\s*-->\s*$")
 
@@ -43,10 +44,11 @@ class Block:
     code: str
     action: str | None
     why: str
+    doc: str = "README.md"
 
     @property
     def name(self) -> str:
-        return f"README.md:{self.line}:{self.lang}"
+        return f"{self.doc}:{self.line}:{self.lang}"
 
 
 def _marker(lines: list[str], fence: int) -> tuple[str | None, str]:
@@ -58,7 +60,7 @@ def _marker(lines: list[str], fence: int) -> tuple[str | None, str]:
     return None, ""
 
 
-def parse_blocks(text: str) -> list[Block]:
+def parse_blocks(text: str, doc: str = "README.md") -> list[Block]:
     """Every fenced block of a Markdown text, in order (an unclosed one runs to the end)."""
     lines, blocks, k = text.splitlines(), [], 0
     while k < len(lines):
@@ -70,12 +72,14 @@ def parse_blocks(text: str) -> list[Block]:
         indent = len(m["indent"])
         code = "\n".join(line[min(indent, len(line) - len(line.lstrip())):]   # dedent
                          for line in lines[k + 1:end])
-        blocks.append(Block(k + 1, m["lang"], code + "\n", *_marker(lines, k)))
+        blocks.append(Block(k + 1, m["lang"], code + "\n", *_marker(lines, k), doc))
         k = end + 1
     return blocks
 
 
-BLOCKS = [b for b in parse_blocks(README.read_text()) if b.lang in LANGUAGES]
+BLOCKS = [b for path in DOCUMENTS
+          for b in parse_blocks(path.read_text(), str(path.relative_to(REPO_ROOT)))
+          if b.lang in LANGUAGES]
 RUNS = [b for b in BLOCKS if b.action == "run"]
 
 
@@ -92,8 +96,9 @@ def test_the_parser_finds_blocks_markers_and_unmarked_ones() -> None:
 
 
 def test_every_block_is_marked() -> None:
-    """Each python/bash block of the README is marked to run, or skipped with a reason."""
-    assert len(BLOCKS) >= 8, [b.name for b in BLOCKS]   # the parser still sees the README's
+    """Each python/bash block of the README and docs is marked to run, or skipped with a
+    reason."""
+    assert len(BLOCKS) >= 8, [b.name for b in BLOCKS]   # the parser still sees the blocks
     bad = [b.name for b in BLOCKS
            if b.action is None or (b.action == "skip" and not b.why)]
     assert not bad, ("README code blocks without a marker line `<!-- snippet: run -->` or "
@@ -109,7 +114,7 @@ def after_make_demo(tmp_path_factory: pytest.TempPathFactory) -> Path:
     for name in (".venv", "recordings"):
         (root / name).symlink_to(REPO_ROOT / name)
     proc = subprocess.run([str(VENV / "bin" / "dexaug"), "demo", "--n", "4"], cwd=root,
-                          env=_env(), capture_output=True, text=True, timeout=180, check=False)
+                          env=_env(), capture_output=True, text=True, timeout=HANG_S, check=False)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     return root
 
