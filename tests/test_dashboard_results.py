@@ -18,7 +18,8 @@ from dexaug.dashboard.server import Dashboard, DashboardConfig
 from dexaug.pipeline.options import AugmentOptions
 from tests.browser import artifact_path, new_page
 from tests.conftest import SOON_S
-from tests.test_dashboard import _get, _last_job_in, _post, _sessions_dir
+from tests.dashboard_http import post_json
+from tests.test_dashboard import _get, _last_job_in, _sessions_dir
 
 
 def _summary(folder: Path, demo: str, generated: int, passed: int) -> None:
@@ -56,7 +57,7 @@ def test_settings_round_trip_and_bad_values_are_refused(tmp_path: Path) -> None:
         assert st == {"n": 5, "n_max": 5000, "validate": "lift-drop",
                       "protocols": ["lift-drop", "six-dir", "dgb", "none"], "table": "demo",
                       "tables": ["demo", "on", "off"]}
-        status, doc = _post(url + "api/settings",
+        status, doc = post_json(url + "api/settings",
                             json.dumps({"n": 37, "table": "on", "validate": "dgb"}).encode())
         assert status == 200 and doc["options"]["settings"]["n"] == 37
         assert dash.config.options.n == 37 and dash.config.options.table is True
@@ -67,15 +68,15 @@ def test_settings_round_trip_and_bad_values_are_refused(tmp_path: Path) -> None:
                             ({"validate": ["dgb"]}, "'validate'"),
                             ({"validate": "shake"}, "'validate'"), ({"gallery": 3}, "gallery"),
                             ([1], "JSON object")):
-            status, doc = _post(url + "api/settings", json.dumps(body).encode())
+            status, doc = post_json(url + "api/settings", json.dumps(body).encode())
             assert status == 400 and field in doc["error"] and "\n" not in doc["error"], body
-        assert _post(url + "api/settings", b"{oops")[0] == 400
+        assert post_json(url + "api/settings", b"{oops")[0] == 400
         assert dash.config.options.n == 37   # nothing changed by the refusals
-        status, doc = _post(url + "api/settings", json.dumps({"validate": "none"}).encode())
+        status, doc = post_json(url + "api/settings", json.dumps({"validate": "none"}).encode())
         assert status == 200 and dash.config.options.validate is None
         # a job queued now runs with the settings of now
         (dice,) = [d for s in _get(url + "api/sessions")[1]["sessions"] for d in s["demos"]]
-        job = _post(url + "api/augment", json.dumps({"demo": dice["key"]}).encode())[1]["job"]
+        job = post_json(url + "api/augment", json.dumps({"demo": dice["key"]}).encode())[1]["job"]
         jobs = _last_job_in(url, "done")
         assert job["key"] == dice["key"] and jobs[-1]["result"]["generated"] == 37
 
