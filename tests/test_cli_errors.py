@@ -238,9 +238,12 @@ def _group_processes(pgid: int) -> list[str]:
 
 
 def _group_pids(pgid: int) -> list[tuple[int, str]]:
-    """(pid, command line) of the live (not zombie) processes of process group ``pgid``."""
-    ps = subprocess.run(["ps", "-o", "pid=,stat=,args=", "-g", str(pgid)], capture_output=True,
-                        text=True)
+    """(pid, command line) of the live (not zombie) processes of process group ``pgid``.
+
+    ``-ww``: whole command lines. Without it ps cuts each line to ``$COLUMNS`` (80 on CI), and
+    a checkout path longer than ours pushed "forkserver" past the cut: CI saw no worker."""
+    ps = subprocess.run(["ps", "-ww", "-o", "pid=,stat=,args=", "-g", str(pgid)],
+                        capture_output=True, text=True)
     rows = [line.split(None, 2) for line in ps.stdout.splitlines()]
     return [(int(row[0]), row[2]) for row in rows if len(row) == 3 and not row[1].startswith("Z")]
 
