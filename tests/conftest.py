@@ -5,8 +5,11 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import subprocess
+import sys
 import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import TypeVar
 
 import pytest
@@ -23,6 +26,7 @@ def _menagerie_available() -> bool:
 
 
 T = TypeVar("T")
+_REPO = Path(__file__).resolve().parents[1]
 
 #: how long a test waits for an event a quiet machine sees within about a second (a reply, a
 #: zenoh route, a frame, a child's start): generous for a 2-core machine at load 4, and no cost
@@ -31,6 +35,15 @@ SOON_S = 60.0
 #: how long a whole child command (a CLI run, a recorder or bridge in its own process) may take
 #: before a test calls it hung: only a hang guard, for runs a quiet machine ends in seconds
 HANG_S = 300.0
+
+
+def run_dexaug(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    """``python -m dexaug ARGS`` as a user runs it (its own process, no stdin, rendering on EGL
+    unless the caller chose), finished; bounded by :data:`HANG_S` only to catch a hang."""
+    env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
+    return subprocess.run([sys.executable, "-m", "dexaug", *args], cwd=cwd or _REPO, env=env,
+                          text=True, capture_output=True, timeout=HANG_S, stdin=subprocess.DEVNULL)
+
 
 
 def wait_for(check: Callable[[], T], limit_s: float, what: str | Callable[[], str], *,

@@ -25,21 +25,15 @@ from augment import dataset
 from teleop import keys
 from teleop.record.demos import extract_demos
 from teleop.record.session import open_session
-from tests.conftest import HANG_S, needs_menagerie, needs_ycb
+from tests.conftest import HANG_S, needs_menagerie, needs_ycb, run_dexaug
 
 pytestmark = [needs_menagerie, needs_ycb]
 
 OBJECT = "043_phillips_screwdriver"
 
 
-def _dexaug(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
-    env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
-    return subprocess.run([sys.executable, "-m", "dexaug", *args], cwd=cwd, env=env, text=True,
-                          capture_output=True, timeout=HANG_S, stdin=subprocess.DEVNULL)
-
-
 def test_the_headset_free_recipe_records_a_demo_that_augments(tmp_path: Path) -> None:
-    made = _dexaug("synth", "--object", OBJECT, "--out", "s.mcap", cwd=tmp_path)
+    made = run_dexaug("synth", "--object", OBJECT, "--out", "s.mcap", cwd=tmp_path)
     assert made.returncode == 0, made.stderr
     port = str(keys.free_tcp_port())
     env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
@@ -48,7 +42,7 @@ def test_the_headset_free_recipe_records_a_demo_that_augments(tmp_path: Path) ->
                               cwd=tmp_path, env=env, text=True, stdout=subprocess.PIPE,
                               stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
     try:
-        replay = _dexaug("replay", "s.mcap", "--connect", port, "--rate", "1.0",
+        replay = run_dexaug("replay", "s.mcap", "--connect", port, "--rate", "1.0",
                          "--wait-bridge-s", str(HANG_S), cwd=tmp_path)
         assert replay.returncode == 0, replay.stdout + replay.stderr
         assert f"bridge object: {OBJECT}" in replay.stdout, replay.stdout
@@ -64,7 +58,7 @@ def test_the_headset_free_recipe_records_a_demo_that_augments(tmp_path: Path) ->
     # and the demo names the object it grasped, not the one in the metadata
     assert rec.metadata["object"] != OBJECT and demo.object == OBJECT
     assert "thumb" in demo.fingers and len(demo.fingers) >= 2, demo.fingers
-    aug = _dexaug("augment", "r.mcap", "--n", "5", "--budget", str(HANG_S), "--gallery", "0",
+    aug = run_dexaug("augment", "r.mcap", "--n", "5", "--budget", str(HANG_S), "--gallery", "0",
                   "--out", "datasets", cwd=tmp_path)
     assert aug.returncode == 0, aug.stdout + aug.stderr
     (h5,) = (tmp_path / "datasets").glob("*/grasps.h5")

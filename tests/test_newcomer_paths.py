@@ -201,21 +201,6 @@ def test_logging_options_work_before_and_after_the_subcommand(argv: list[str],
     assert log_level(args) == level
 
 
-@needs_menagerie
-@needs_ycb
-def test_the_object_leaving_the_table_after_the_release_is_not_an_info_line(
-        tmp_path: Path, capsys: pytest.CaptureFixture[str],
-        caplog: pytest.LogCaptureFixture) -> None:
-    """Re-recording the synthetic operator (what `make demo` does first): the can falls off
-    the table once the hand lets go, which is no news at INFO (seen with -v)."""
-    caplog.set_level(logging.DEBUG, logger="teleop")
-    code, _, _ = _run(["rerecord", str(SYNTH), str(tmp_path / "r.mcap")], capsys)
-    assert code == 0
-    left = [r for r in caplog.records if "left the table" in r.getMessage()]
-    assert left and all(r.levelno == logging.DEBUG for r in left), [
-        (r.levelname, r.getMessage()) for r in left]
-
-
 # ------------------------------------------------------------ 6. did you mean
 
 @needs_ycb

@@ -26,6 +26,8 @@ if TYPE_CHECKING:
 #: ``replay --wait-bridge-s``: how long replay waits for a bridge (any subscriber of the rig's
 #: hands) before it gives up; generous, as a bridge loading its hand and scene takes seconds
 WAIT_BRIDGE_S = 30.0
+#: a committed session that replays, named when a session cannot (recordings/README.md)
+_REPLAYABLE_SAMPLE = "recordings/bridge_043_phillips_screwdriver.mcap"
 
 
 def _replay_args(p: argparse.ArgumentParser) -> None:
@@ -68,8 +70,12 @@ def replay(args: argparse.Namespace, console: Console) -> int:
     recording = open_recording(args.file)
     if not recording.counts.get(TOPIC_HANDS):
         held = ", ".join(f"{t} {n}" for t, n in recording.counts.items() if n) or "no messages"
-        raise UsageError(f"{args.file}: no hand frames ({TOPIC_HANDS}) to replay; it holds "
-                         f"{held}")
+        what = ("a scripted demonstration (`dexaug demo script`): the robot's states, no "
+                "person's hand frames" if recording.metadata.get("scripted") is True
+                else f"no hand frames ({TOPIC_HANDS})")
+        raise UsageError(f"{args.file}: {what} to replay; it holds {held}. Sessions with "
+                         f"hand tracking replay: a headset's, `dexaug synth`'s, or a bridge "
+                         f"recording of either (e.g. {_REPLAYABLE_SAMPLE})")
     mode = session_object_mode(recording.metadata, args.file, args.object_mode)
     session = open_session(free_tcp_port(), tuple(args.connect))
     try:
