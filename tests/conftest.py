@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -44,6 +45,13 @@ def run_dexaug(*args: str, cwd: Path | None = None) -> subprocess.CompletedProce
     return subprocess.run([sys.executable, "-m", "dexaug", *args], cwd=cwd or _REPO, env=env,
                           text=True, capture_output=True, timeout=HANG_S, stdin=subprocess.DEVNULL)
 
+
+def sigint_as_a_terminal_gives_it() -> None:
+    """``preexec_fn`` of a child a test stops with SIGINT (Ctrl-C): SIGINT at its default, as a
+    terminal's foreground command has it. A suite started as a background job of a
+    non-interactive shell inherits SIGINT ignored (POSIX), Python then keeps ignoring it, and
+    the child would never see the Ctrl-C the test sends."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def wait_for(check: Callable[[], T], limit_s: float, what: str | Callable[[], str], *,

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.conftest import HANG_S, SOON_S, needs_menagerie, needs_ycb, wait_for
+from tests.conftest import HANG_S, SOON_S, needs_menagerie, needs_ycb, sigint_as_a_terminal_gives_it, wait_for
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -265,14 +265,6 @@ def _sampling_workers(pgid: int) -> list[int]:
     return found
 
 
-def _sigint_as_a_terminal_gives_it() -> None:
-    """In the child before exec: SIGINT at its default, as a terminal's foreground command
-    has it. A suite started as a background job of a non-interactive shell inherits SIGINT
-    ignored (POSIX), Python then keeps ignoring it, and the test would measure the launcher
-    instead of the command."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-
-
 @needs_menagerie
 @needs_ycb
 @pytest.mark.parametrize(("signum", "to_group", "status"), [
@@ -291,7 +283,7 @@ def test_interrupting_fsg_exits_within_seconds(tmp_path: Path, signum: int, to_g
          str(tmp_path / "out")],
         cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
         start_new_session=True, env={**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")},
-        preexec_fn=_sigint_as_a_terminal_gives_it)
+        preexec_fn=sigint_as_a_terminal_gives_it)
     try:
         # the event itself: both workers are in their FSG task (loading the session, building
         # the workspace and starting the fork server come first: seconds, more under load)

@@ -25,7 +25,7 @@ from augment import dataset
 from teleop import keys
 from teleop.record.demos import extract_demos
 from teleop.record.session import open_session
-from tests.conftest import HANG_S, needs_menagerie, needs_ycb, run_dexaug
+from tests.conftest import HANG_S, needs_menagerie, needs_ycb, run_dexaug, sigint_as_a_terminal_gives_it
 
 pytestmark = [needs_menagerie, needs_ycb]
 
@@ -40,7 +40,8 @@ def test_the_headset_free_recipe_records_a_demo_that_augments(tmp_path: Path) ->
     bridge = subprocess.Popen([sys.executable, "-m", "dexaug", "bridge", "--listen", port,
                                "--record", "r.mcap", "--no-view", "--object-mode", "demo"],
                               cwd=tmp_path, env=env, text=True, stdout=subprocess.PIPE,
-                              stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
+                              stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                              preexec_fn=sigint_as_a_terminal_gives_it)
     try:
         replay = run_dexaug("replay", "s.mcap", "--connect", port, "--rate", "1.0",
                          "--wait-bridge-s", str(HANG_S), cwd=tmp_path)
