@@ -16,8 +16,9 @@ without finger iteration, +LinkPen with the link penetration check):
   penetration at placement (mean of the per-grasp maximum), and diversity: the RMS distance of
   palm positions from their mean and the mean standard deviation of the used joints.
 
-Rows that find nothing show "—", as the paper's NaN rows. The paper's figures come from
-``configs/paper/autows_fsg_tables.toml``.
+Rows that find nothing show "—", as the paper's NaN rows. The paper's figures, and the hand its
+tables are of (``hand``: the Shadow Hand, the paper's §5; the rows are measured on it, not on
+whichever hand is the default), come from ``configs/paper/autows_fsg_tables.toml``.
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from sim.config import load_toml
+from sim.config import Section, load_toml
 from sim.paths import CONFIG_DIR, REPO_ROOT
 
 if TYPE_CHECKING:
@@ -71,11 +72,27 @@ class Row:
     joint_spread_deg: float = math.nan
 
 
+def _paper_config(path: Path) -> Section:
+    """The paper config, its keys checked (a typo would silently drop a row or the hand)."""
+    root = load_toml(path)
+    root.reject_unknown({"hand", "rows"})
+    for sec in root.sections("rows"):
+        sec.reject_unknown({"table", "object", "values"})
+    return root
+
+
+def paper_hand(path: Path = PAPER_TABLES) -> str:
+    """The hand the paper's tables are of (the config's ``hand``), checked against the hand
+    folders: a one-line error naming the file and key when there is no such folder."""
+    from sim.hand.config import named_hand
+
+    return named_hand(_paper_config(path))
+
+
 def paper_figures(path: Path = PAPER_TABLES) -> dict[tuple[str, str, str], list[float]]:
     """(workspace, object, method) → [time/result s, ε, volume, valid-ε %] from the paper."""
     out = {}
-    root = load_toml(path)
-    for sec in root.sections("rows"):
+    for sec in _paper_config(path).sections("rows"):
         values = sec.section("values")
         for method in values.data:
             out[(sec.str("table"), sec.str("object"), method)] = values.floats(method, 4)
@@ -103,18 +120,18 @@ def _diversity(grasps: list[FsgGrasp], joint_mask: np.ndarray) -> tuple[float, f
 def measure(objects: list[str], methods: list[str], workspaces: list[str], *, n: int,
             budget_s: float, workers: int, seed: int = 0, six_dir: bool = True,
             on_row: Callable[[Row], None] | None = None) -> list[Row]:
-    """Measure every (object, workspace, method) row; see the module docstring."""
+    """Measure every (object, workspace, method) row on the paper's hand (:func:`paper_hand`);
+    see the module docstring."""
     from augment.autows.build import build_workspace
     from augment.autows.seed import DemoSeed
     from augment.object_cloud import object_cloud
     from dexaug.pipeline.run import demo_fingers, generate_grasps
     from sim.demo import load_demo
-    from sim.hand.config import default_hand_name
     from sim.hand.model import Hand
     from sim.validate.batch import validate_many
     from sim.world.objects import load_object
 
-    hand = Hand.load(default_hand_name())
+    hand = Hand.load(paper_hand())
     finger_joints = {j for f in hand.config.fingers for j in f.joints}
     joint_mask = np.array([j in finger_joints for j in hand.joint_names])
     manual = build_workspace(hand)

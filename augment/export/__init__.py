@@ -14,8 +14,16 @@ Why: a dataset is only useful in the field if the tools people already run can r
   root + 22 joints), ``obj_pose``, ``obj_scale``, ``obj_path``; with :func:`read_bodex`.
 
 The Shadow-Hand layouts convert frames and joints exactly, by forward kinematics of our hand
-(:mod:`.foreign`: which joints are dropped and why). Files are written atomically
-(:func:`sim.io.atomic_path`; the ``bodex`` folder as a whole). Units: metres, radians.
+(:mod:`.foreign`: which joints are dropped and why). Which body places their hand and which
+joints they list in which order is the hand's own declaration, ``[formats.fsg]`` /
+``[formats.bodex]`` in ``configs/hands/<hand>/hand.toml`` (:class:`sim.hand.config.HandFormat`):
+nothing here names a hand's joints, and a hand that declares no such table is refused in one
+line. Files are written atomically (:func:`sim.io.atomic_path`; the ``bodex`` folder as a
+whole). Units: metres, radians.
+
+What to import: the writers, readers and converters below, from the package
+(``from augment.export import write_fsg, read_fsg, fsg_to_dexaug``); :data:`FORMATS` lists the
+layouts ``dexaug export`` offers.
 """
 
 from __future__ import annotations

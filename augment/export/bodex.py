@@ -15,6 +15,10 @@ Layout — DexGraspBench (GitHub JYChen18/DexGraspBench @ 1e7a5a6): its evaluati
                        (assets/hand/shadow/right_hand.xml): FFJ4..FFJ1 MFJ4..MFJ1 RFJ4..RFJ1
                        LFJ5..LFJ1 THJ5..THJ1 (radians)
 
+The palm body and that joint order are the hand's declaration, ``[formats.bodex]`` in
+``configs/hands/shadow_right/hand.toml`` (:class:`~augment.export.foreign.ForeignHand`); a hand
+without one is refused.
+
 Its Shadow asset is Menagerie's right hand without forearm and wrist (``assets/hand/README.md``):
 the worldbody holds ``rh_palm`` at ``pos="0 0 0.034"``, and ``MjHO`` attaches it under a free
 joint driven by a mocap weld, so ``qpos[:7]`` is the frame ``rh_palm`` hangs from —
@@ -67,29 +71,20 @@ from sim.errors import DexaugError
 from sim.hand.model import Hand
 from sim.transforms import pose_inv, pose_mul
 
-__all__ = ["BODEX_LAYOUT", "DGB_PALM_BODY", "DGB_SHADOW_JOINTS", "IDENTITY_POSE", "MANIFEST",
-           "BodexExport", "bodex_hand", "bodex_to_dexaug", "read_bodex", "table_stages",
-           "write_bodex"]
+__all__ = ["BODEX_LAYOUT", "IDENTITY_POSE", "MANIFEST", "BodexExport", "bodex_hand",
+           "bodex_to_dexaug", "read_bodex", "table_stages", "write_bodex"]
 
 BODEX_LAYOUT = "dexaug-dgb-graspdata-1"
 MANIFEST = "dexaug_export.json"
-#: the body DGB's Shadow asset hangs from its floating root
-DGB_PALM_BODY = "rh_palm"
-#: DGB's Shadow qpos order after the root (assets/hand/shadow/right_hand.xml)
-DGB_SHADOW_JOINTS: tuple[str, ...] = (
-    "rh_FFJ4", "rh_FFJ3", "rh_FFJ2", "rh_FFJ1", "rh_MFJ4", "rh_MFJ3", "rh_MFJ2", "rh_MFJ1",
-    "rh_RFJ4", "rh_RFJ3", "rh_RFJ2", "rh_RFJ1", "rh_LFJ5", "rh_LFJ4", "rh_LFJ3", "rh_LFJ2",
-    "rh_LFJ1", "rh_THJ5", "rh_THJ4", "rh_THJ3", "rh_THJ2", "rh_THJ1")
 IDENTITY_POSE: tuple[float, ...] = (0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
-_THEIR_HAND = "DexGraspBench's Shadow Hand (floating rh_palm, no forearm or wrist)"
 _STAGES = ("pregrasp_qpos", "grasp_qpos", "squeeze_qpos")
 _KEYS = ("obj_path", "obj_scale", "obj_pose", *_STAGES)
 
 
 def bodex_hand(hand: Hand) -> ForeignHand:
-    """``hand`` as DexGraspBench's Shadow Hand; refused (one line) when it cannot be."""
-    return ForeignHand(hand, layout="bodex", their_hand=_THEIR_HAND, body=DGB_PALM_BODY,
-                       joints=DGB_SHADOW_JOINTS)
+    """``hand`` as DexGraspBench knows it (its ``[formats.bodex]``); refused (one line) when it
+    declares none or cannot be."""
+    return ForeignHand(hand, "bodex")
 
 
 @dataclass(frozen=True)
@@ -176,10 +171,11 @@ def write_bodex(out: Path | str, tables: Mapping[str, ObjectTable], hand: Hand, 
     manifest = {
         "format": BODEX_LAYOUT, "hand": hand.name, "source": source,
         "reader": "DexGraspBench: np.load(path, allow_pickle=True).item() of <dir>/**/*.npy",
-        "qpos": "[0:3] root position (m), [3:7] root quaternion w x y z, [7:29] joints (rad)",
-        "root": f"the frame {DGB_PALM_BODY} hangs from: {DGB_PALM_BODY} at root_to_palm_body",
+        "qpos": "[0:3] root position (m), [3:7] root quaternion w x y z, "
+                f"[7:{7 + len(foreign.joints)}] joints (rad)",
+        "root": f"the frame {foreign.body} hangs from: {foreign.body} at root_to_palm_body",
         "root_to_palm_body": [float(x) + 0.0 for x in np.r_[pose_inv(*root_in_body)]],
-        "joint_names": list(DGB_SHADOW_JOINTS), "dropped_joints": list(foreign.dropped),
+        "joint_names": list(foreign.joints), "dropped_joints": list(foreign.dropped),
         "grasps_with_dropped_joints_moved": moved,
         "object_frame": "the object's mesh origin (dexaug's YCB textured.obj)",
         "obj_pose": list(map(float, np.r_[obj_p, obj_q])), "obj_scale": float(object_scale),
@@ -224,11 +220,14 @@ def _new_folder_mode() -> int:
     return 0o777 & ~umask
 
 
-def read_bodex(out: Path | str) -> list[dict[str, Any]]:
+def read_bodex(out: Path | str, hand: Hand | None = None) -> list[dict[str, Any]]:
     """Every grasp file under ``out`` the way DexGraspBench reads it (``**/*.npy``, sorted,
     ``np.load(…, allow_pickle=True).item()``), with ``"path"`` added; a file without its keys
-    or with wrong shapes is refused (one line naming it)."""
+    or with wrong shapes is refused (one line naming it). The stages are the root's 7 numbers
+    and the joints of ``hand``'s ``[formats.bodex]`` (without ``hand``: the joints of the
+    manifest beside the files, else as many as the first file has)."""
     out = Path(out)
+    joints = (len(bodex_hand(hand).joints) if hand is not None else _manifest_joints(out))
     records = []
     for path in sorted(out.glob("**/*.npy")):
         try:
@@ -238,12 +237,22 @@ def read_bodex(out: Path | str) -> list[dict[str, Any]]:
         missing = [k for k in _KEYS if k not in d] if isinstance(d, dict) else list(_KEYS)
         if missing:
             raise DexaugError(f"{path}: no {', '.join(missing)}")
-        for key, shape in (("obj_pose", (7,)), *((k, (7 + len(DGB_SHADOW_JOINTS),))
-                                                 for k in _STAGES)):
+        if joints is None:
+            joints = max(0, len(np.ravel(d[_STAGES[0]])) - 7)
+        for key, shape in (("obj_pose", (7,)), *((k, (7 + joints,)) for k in _STAGES)):
             if np.shape(d[key]) != shape:
                 raise DexaugError(f"{path}: {key} has shape {np.shape(d[key])}, expected {shape}")
         records.append({**d, "path": path})
     return records
+
+
+def _manifest_joints(out: Path) -> int | None:
+    """How many joints the export's manifest lists (None: no readable manifest)."""
+    try:
+        names = json.loads((out / MANIFEST).read_text())["joint_names"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return len(names) if isinstance(names, list) else None
 
 
 def bodex_to_dexaug(records: Sequence[Mapping[str, Any]], hand: Hand) -> dict[str, np.ndarray]:

@@ -7,7 +7,9 @@ authors' files and DexGraspBench/BODex place a hand by the pose of a *body* (``r
 list only the 22 finger joints: both of their Shadow Hands float from the palm, with no forearm
 and no wrist. :class:`ForeignHand` converts with forward kinematics of our hand model (the pose
 of their body in frame_palm for each grasp's own joints), not with hard-coded offsets, and maps
-joints by name.
+joints by name. Which body and which joints in which order is the hand's own declaration, its
+``[formats.<layout>]`` table (``configs/hands/<hand>/hand.toml``, :class:`sim.hand.config.HandFormat`):
+a hand that declares none is refused in one line, whatever joints it has.
 
 What is dropped: our joints that are not theirs. They are accepted only when they move nothing
 their hand has — joints of the body itself or of bodies above it (the Shadow wrist: ``rh_WRJ1``
@@ -16,7 +18,7 @@ with a bent wrist is therefore converted exactly: its ``rh_palm`` and everything
 where they were; only the wrist angles, and our wrist body their hand does not have, are lost,
 and reading the grasp back gives the wrist at 0. A hand with a joint below the body that they
 lack, or without one of their joints or their body, is refused (:class:`sim.errors.DexaugError`
-naming the hand and what is missing).
+naming the hand, what is missing and the table that declared it).
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ import numpy as np
 
 from augment.dataset import ObjectTable
 from sim.errors import DexaugError
+from sim.hand.config import hand_format
 from sim.hand.model import Hand
 from sim.transforms import pose_inv, pose_mul
 
@@ -62,12 +65,16 @@ def split_pose(pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 class ForeignHand:
-    """Our ``hand`` as ``their_hand`` (a tool's hand) sees it: placed by the pose of ``body``,
-    with the joints ``joints`` in that order (module docstring)."""
+    """Our ``hand`` as the ``layout`` format's hand sees it (module docstring): placed by the
+    pose of ``body``, with the joints ``joints`` in that order, both from the hand's
+    ``[formats.<layout>]``."""
 
-    def __init__(self, hand: Hand, *, layout: str, their_hand: str, body: str,
-                 joints: Sequence[str]) -> None:
-        self.hand, self.layout, self.body, self.joints = hand, layout, body, tuple(joints)
+    def __init__(self, hand: Hand, layout: str) -> None:
+        fmt = hand_format(hand.config, layout, hand.joint_names,
+                          f"be written in the {layout} layout")
+        self.hand, self.layout, self.body, self.joints = hand, layout, fmt.body, fmt.joint_order
+        body, their_hand = fmt.body, fmt.their_hand
+        declared = f"(as {hand.config.file} [formats.{layout}] declares)"
         m = hand.model
         names = hand.joint_names
         bodies = {m.body(b).name for b in range(m.nbody)}
@@ -76,7 +83,7 @@ class ForeignHand:
             raise DexaugError(
                 f"hand {hand.name!r} cannot be written in the {layout} layout: {their_hand} is "
                 f"placed by its body {body!r} and has the {len(self.joints)} joints "
-                f"{self.joints[0]} … {self.joints[-1]}; hand {hand.name!r} lacks "
+                f"{self.joints[0]} … {self.joints[-1]} {declared}; hand {hand.name!r} lacks "
                 f"{', '.join(missing[:4])}{f' and {len(missing) - 4} more' if len(missing) > 4 else ''}")
         self.index = np.array([names.index(j) for j in self.joints])
         self.body_id = m.body(body).id
@@ -86,7 +93,8 @@ class ForeignHand:
             if int(m.jnt_bodyid[m.joint(j).id]) not in above:
                 raise DexaugError(
                     f"hand {hand.name!r} cannot be written in the {layout} layout: its joint "
-                    f"{j!r} moves bodies below {body!r}, and {their_hand} has no such joint")
+                    f"{j!r} moves bodies below {body!r}, and {their_hand} has no such joint "
+                    f"{declared}")
         if self.body_id not in _self_and_ancestors(m.body_parentid, hand.palm_body_id):
             raise DexaugError(
                 f"hand {hand.name!r} cannot be written in the {layout} layout: its frame_palm "

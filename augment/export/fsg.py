@@ -17,9 +17,11 @@ appends to a file by resizing. The root link of their ``assets/robot/srh/urdf/sr
 Menagerie ``rh_palm`` body's (same finger joint origins; ``../shared/assets/handdata/
 fsg_keyframes/README.md``); their reader puts that link at ``palm_pose`` with no extra rotation
 for ``srh`` (scipy ``from_quat([qx, qy, qz, qw])``) and sets the joints by name in the order
-above. So ``palm_pose`` is the pose of ``rh_palm`` — not dexaug's frame_palm, which is
-``rh_palm`` turned 180° about z with its origin on the palm face — and it is computed from
-frame_palm by forward kinematics of our hand (:class:`augment.export.foreign.ForeignHand`).
+above (the hand's declaration: ``[formats.fsg]`` in ``configs/hands/shadow_right/hand.toml``;
+a hand without one is refused). So ``palm_pose`` is the pose of ``rh_palm`` — not dexaug's
+frame_palm, which is ``rh_palm`` turned 180° about z with its origin on the palm face — and it
+is computed from frame_palm by forward kinematics of our hand
+(:class:`augment.export.foreign.ForeignHand`).
 Their hand has no wrist: ``rh_WRJ2`` and ``rh_WRJ1`` are dropped (``foreign``'s docstring: the
 palm and fingers stay exact; the count of grasps whose wrist was bent is returned and stored).
 ``gws`` is their L1 grasp-wrench-space ε (torques over the object's largest radius), the metric
@@ -54,29 +56,21 @@ from sim.hand.model import Hand
 from sim.io import atomic_path
 from sim.transforms import pose_inv, pose_mul
 
-__all__ = ["FSG_DATASETS", "FSG_LAYOUT", "FSG_PALM_BODY", "FSG_SRH_JOINTS", "FsgExport",
-           "FsgGroup", "fsg_group_name", "fsg_hand", "fsg_to_dexaug", "read_fsg", "write_fsg"]
+__all__ = ["FSG_DATASETS", "FSG_LAYOUT", "FsgExport", "FsgGroup", "fsg_group_name", "fsg_hand",
+           "fsg_to_dexaug", "read_fsg", "write_fsg"]
 
 FSG_LAYOUT = "dexaug-fsg-srh-1"
-#: their robot's root link (srh.urdf), the body ``palm_pose`` places
-FSG_PALM_BODY = "rh_palm"
-#: ``robot_joint_names`` of their reader for ``srh`` (scripts/grasp_gen/reader_grasp.py)
-FSG_SRH_JOINTS: tuple[str, ...] = (
-    "rh_FFJ4", "rh_FFJ3", "rh_FFJ2", "rh_FFJ1", "rh_MFJ4", "rh_MFJ3", "rh_MFJ2", "rh_MFJ1",
-    "rh_RFJ4", "rh_RFJ3", "rh_RFJ2", "rh_RFJ1", "rh_LFJ5", "rh_LFJ4", "rh_LFJ3", "rh_LFJ2",
-    "rh_LFJ1", "rh_THJ5", "rh_THJ4", "rh_THJ3", "rh_THJ2", "rh_THJ1")
-#: dataset → its columns (the first axis is the grasp)
-FSG_DATASETS: dict[str, int] = {"palm_pose": 7, "hand_pose": len(FSG_SRH_JOINTS), "gws": 1}
-_THEIR_HAND = "the FSG authors' Shadow Hand (srh.urdf: rh_palm root, no wrist)"
+#: dataset → its columns (the first axis is the grasp; None: the hand's ``[formats.fsg]`` joints)
+FSG_DATASETS: dict[str, int | None] = {"palm_pose": 7, "hand_pose": None, "gws": 1}
 _IDENTITY = (0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
 _OURS = "dexaug object frame (the object's mesh origin, YCB textured.obj)"
 _THEIRS = "the reference implementation's object mesh frame (our frame placed by object_transform)"
 
 
 def fsg_hand(hand: Hand) -> ForeignHand:
-    """``hand`` as the FSG authors' Shadow Hand; refused (one line) when it cannot be."""
-    return ForeignHand(hand, layout="fsg", their_hand=_THEIR_HAND, body=FSG_PALM_BODY,
-                       joints=FSG_SRH_JOINTS)
+    """``hand`` as the FSG authors' files know it (its ``[formats.fsg]``); refused (one line)
+    when it declares none or cannot be."""
+    return ForeignHand(hand, "fsg")
 
 
 def fsg_group_name(object_name: str) -> str:
@@ -133,8 +127,8 @@ def write_fsg(path: Path | str, tables: Mapping[str, ObjectTable], hand: Hand, *
                                                      else object_transforms[name], float)}}
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
         f.attrs.update({
-            "dexaug_layout": FSG_LAYOUT, "palm_body": FSG_PALM_BODY,
-            "palm_pose_order": "x y z qw qx qy qz", "joint_names": list(FSG_SRH_JOINTS),
+            "dexaug_layout": FSG_LAYOUT, "palm_body": foreign.body,
+            "palm_pose_order": "x y z qw qx qy qz", "joint_names": list(foreign.joints),
             "dropped_joints": " ".join(foreign.dropped),
             "grasps_with_dropped_joints_moved": moved, "source": source})
         for group, content in groups.items():
@@ -149,8 +143,9 @@ def write_fsg(path: Path | str, tables: Mapping[str, ObjectTable], hand: Hand, *
 
 @dataclass(frozen=True)
 class FsgGroup:
-    """One object's grasps as their reader reads them: ``palm_pose`` (N,7) of ``rh_palm``
-    [x y z qw qx qy qz], ``hand_pose`` (N,22) in ``FSG_SRH_JOINTS`` order, ``gws`` (N,1)."""
+    """One object's grasps as their reader reads them: ``palm_pose`` (N,7) of their palm body
+    (``rh_palm``) [x y z qw qx qy qz], ``hand_pose`` (N,J) in the hand's ``[formats.fsg]``
+    joint order (J = 22 for theirs), ``gws`` (N,1)."""
 
     name: str
     palm_pose: np.ndarray
@@ -159,10 +154,12 @@ class FsgGroup:
     attrs: dict[str, Any] = field(default_factory=dict)
 
 
-def read_fsg(path: Path | str) -> dict[str, FsgGroup]:
+def read_fsg(path: Path | str, hand: Hand | None = None) -> dict[str, FsgGroup]:
     """Read a file of the FSG layout the way their reader does (every top-level group is an
     object; ``palm_pose``/``hand_pose``/``gws`` by name, row i is grasp i), refusing what their
-    reader could not use: a missing dataset or a wrong column count (one line naming it)."""
+    reader could not use: a missing dataset or a wrong column count (one line naming it).
+    ``hand_pose`` has the joints of ``hand``'s ``[formats.fsg]`` (without ``hand``: as many as
+    the file's ``joint_names`` attribute lists, else any number)."""
     path = Path(path)
     try:
         f = h5py.File(path, "r")
@@ -170,19 +167,23 @@ def read_fsg(path: Path | str) -> dict[str, FsgGroup]:
         raise DexaugError(f"{path}: cannot read it as HDF5 ({exc})") from None
     out = {}
     with f:
+        named = f.attrs.get("joint_names")
+        joints = (len(fsg_hand(hand).joints) if hand is not None
+                  else None if named is None else len(named))
         for name in f:
             g = f[name]
             if not isinstance(g, h5py.Group):
                 raise DexaugError(f"{path}: /{name} is not an object group")
             arrays = {}
-            for key, cols in FSG_DATASETS.items():
+            for key, width in FSG_DATASETS.items():
+                cols = joints if width is None else width
                 if key not in g:
                     raise DexaugError(f"{path}: /{name}/{key} is missing (their reader needs "
                                       f"{', '.join(FSG_DATASETS)})")
                 a = np.asarray(g[key][()])
-                if a.ndim != 2 or a.shape[1] != cols:
+                if a.ndim != 2 or (cols is not None and a.shape[1] != cols):
                     raise DexaugError(f"{path}: /{name}/{key} has shape {a.shape}, expected "
-                                      f"(N, {cols})")
+                                      f"(N, {'J' if cols is None else cols})")
                 arrays[key] = a
             n = {len(a) for a in arrays.values()}
             if len(n) != 1:

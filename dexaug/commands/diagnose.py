@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +21,7 @@ from rich.text import Text
 from dexaug.commands.argtypes import int_at_least
 from dexaug.commands.guards import dataset_file, did_you_mean, require_writable
 from dexaug.commands.registry import command
+from dexaug.pipeline.protocol_facts import DEFAULT_PROTOCOL, diagnosable, diagnosis
 from sim.errors import DexaugError
 
 __all__ = ["diagnose", "diagnose_dataset"]
@@ -33,7 +35,7 @@ def _diagnose_args(p: argparse.ArgumentParser) -> None:
                         "default %(default)s")
     p.add_argument("--passing", type=int_at_least(0), default=5,
                    help="passing grasps replayed too, for comparison; default %(default)s")
-    p.add_argument("--protocol", choices=("lift-drop", "dgb"), default="lift-drop",
+    p.add_argument("--protocol", choices=diagnosable(), default=DEFAULT_PROTOCOL,
                    help="replay under lift-drop (slip, friction, efforts) or the benchmark (closing "
                         "drift, the held closing's imbalance, reconfigured J1/J2 pairs, unloaded "
                         "contacts, the hardest push); default %(default)s")
@@ -99,20 +101,26 @@ def _dgb_summary_table(name: str, summary: dict[str, Any]) -> Table:
     return t
 
 
+#: how each diagnosis's summary is shown, by the module that makes it
+#: (:class:`dexaug.pipeline.protocol_facts.Diagnosis`)
+_SUMMARY_TABLES: dict[str, Callable[[str, dict[str, Any]], Table]] = {
+    "sim.validate.diagnose": _summary_table, "sim.validate.diagnose_dgb": _dgb_summary_table}
+
+
 def diagnose_dataset(path: Path, console: Console, *, object_name: str | None = None,
                      n: int = 20, passing: int = 5, json_path: Path | None = None,
-                     protocol: str = "lift-drop") -> int:
+                     protocol: str = DEFAULT_PROTOCOL) -> int:
     """Replay up to ``n`` failing and ``passing`` passing grasps per object of the dataset at
     ``path`` under ``protocol`` and print the findings; returns the exit code."""
     from augment import dataset
     from augment.grasp_table import grasps_of
     from sim.hand.model import Hand
     from sim.io import write_bytes_atomic
-    from sim.validate.diagnose import diagnose, summarise
-    from sim.validate.diagnose_dgb import diagnose_dgb, summarise_dgb
     from sim.validate.validator import Validator
     from sim.world.objects import load_object
 
+    replay = diagnosis(protocol)
+    summary_table = _SUMMARY_TABLES[replay.module]
     tables = dataset.load(path)
     if object_name is not None:
         if object_name not in tables:
@@ -134,15 +142,10 @@ def diagnose_dataset(path: Path, console: Console, *, object_name: str | None = 
         with Progress(console=console, transient=True) as bar:
             task = bar.add_task(f"replaying {name}", total=len(jobs))
             for _, grasp in jobs:
-                diagnoses.append(diagnose_dgb(validator, grasp) if protocol == "dgb"
-                                 else diagnose(validator, grasp))
+                diagnoses.append(replay.diagnose(validator, grasp))
                 bar.advance(task)
-        if protocol == "dgb":
-            summary = summarise_dgb(diagnoses)
-            console.print(_dgb_summary_table(name, summary))
-        else:
-            summary = summarise(diagnoses)
-            console.print(_summary_table(name, summary))
+        summary = replay.summarise(diagnoses)
+        console.print(summary_table(name, summary))
         report[name] = {"summary": summary,
                         "grasps": [{"set": s, **d.findings} for (s, _), d in zip(jobs, diagnoses,
                                                                                   strict=True)]}

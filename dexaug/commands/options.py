@@ -68,9 +68,10 @@ def generation_args(p: argparse.ArgumentParser) -> None:
     """Options shared by ``generate`` and ``augment``."""
     p.add_argument("--n", type=count, default=DEFAULT_GRASPS, help=n_help("grasps wanted per "
                    "demo / object"))
+    from dexaug.pipeline.protocol_facts import DEFAULT_PROTOCOL
     from sim.validate.config import PROTOCOLS, SQUEEZE_CONVENTIONS
 
-    p.add_argument("--validate", choices=(*PROTOCOLS, "none"), default="lift-drop",
+    p.add_argument("--validate", choices=(*PROTOCOLS, "none"), default=DEFAULT_PROTOCOL,
                    help="simulated validation of every grasp: lift-drop (dexaug's, real mass), "
                    "six-dir (dexaug's stricter pushes, real mass) or dgb (DexGraspBench's "
                    "protocol); default %(default)s")
@@ -166,12 +167,15 @@ def augment_options(args: argparse.Namespace) -> AugmentOptions:
 
 
 def backend_of(args: argparse.Namespace) -> str:
-    """``--backend``, refused with a protocol it cannot step (only lift-drop and six-dir are
-    programs a batch backend runs; dgb steps grasp by grasp on the C engine), and checked
+    """``--backend``, refused with a protocol it cannot step (only the protocols that run as one
+    program, lift-drop and six-dir, :func:`~dexaug.pipeline.protocol_facts.batch_protocols`,
+    are stepped by a batch backend; dgb steps grasp by grasp on the C engine), and checked
     here before any work when it runs in this process (not on a Ray cluster, whose nodes may
     have the GPU this machine lacks): no FSG run ends in a missing package."""
-    if args.backend != "mujoco" and args.validate not in ("lift-drop", "six-dir"):
-        raise UsageError(f"--backend {args.backend} runs lift-drop and six-dir; --validate "
+    from dexaug.pipeline.protocol_facts import batch_protocols, spoken
+
+    if args.backend != "mujoco" and args.validate not in batch_protocols():
+        raise UsageError(f"--backend {args.backend} runs {spoken(batch_protocols())}; --validate "
                          f"{args.validate} runs on --backend mujoco")
     if args.backend == "warp" and getattr(args, "ray", None) is None:
         from sim.validate.warp_runner import import_warp

@@ -32,11 +32,19 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from dexaug.pipeline.keyframe_files import Keyframe, joint_vector, numbers, read_keyframes, unit_quat
+from dexaug.pipeline.keyframe_files import (
+    SRH_FORMAT,
+    Keyframe,
+    joint_vector,
+    numbers,
+    read_keyframes,
+    srh_format,
+    unit_quat,
+)
 from sim.demo import Demo, DemoError, demo_to_json
 from sim.errors import AssetError
 from sim.grasp import Grasp
-from sim.hand.config import default_hand_name, hand_names, load_hand_config
+from sim.hand.config import hand_names, load_hand_config
 from sim.hand.model import Hand
 from sim.io import write_bytes_atomic
 from sim.paths import REPO_ROOT
@@ -75,11 +83,12 @@ def import_demos(path: Path | str, *, hand: str | None = None, object_name: str 
     """The demos of the keyframes in ``path`` (all, or the one of ``object_name``).
 
     ``hand``: the hand config (default: the one whose palm body and finger joints the file
-    names; srh.txt, which names none: the default hand). ``object_transform``: [x, y, z, qw,
-    qx, qy, qz], our object's frame in the file's (module docstring); required for srh.txt,
-    for one object at a time. ``note`` (e.g. the source's authors and licence) is kept in the
-    provenance. Raises :class:`DemoError` (one line: file, entry, field, what was expected).
-    """
+    names; srh.txt, which names none: the hand whose folder declares ``[formats.srh_txt]``).
+    ``object_transform``: [x, y, z, qw, qx, qy, qz], our object's frame in the file's (module
+    docstring); required for srh.txt, for one object at a time. ``note`` (e.g. the source's
+    authors and licence) is kept in the provenance. Raises :class:`DemoError` (one line: file,
+    entry, field, what was expected; :class:`~sim.errors.ConfigError` for a hand that declares
+    no srh.txt format)."""
     path = Path(path)
     if not (np.isfinite(tolerance_m) and 0.0 < tolerance_m < FAR_M):
         raise DemoError(f"tolerance: expected a distance in (0, {FAR_M * 1e3:g}) mm, got "
@@ -115,10 +124,10 @@ def _select(path: Path, keyframes: list[Keyframe], object_name: str | None,
 
 def _hand_for(kf: Keyframe, name: str | None, cache: dict[str, Hand]) -> Hand:
     """The named hand, else of the hands whose palm body is the keyframe's the one that shares
-    most finger joint names with it (:func:`joint_vector` then names any it lacks); the default
-    hand for a keyframe that names neither."""
+    most finger joint names with it (:func:`joint_vector` then names any it lacks); for a
+    keyframe that names neither (srh.txt), the one hand whose folder declares its format."""
     if name is None and kf.palm_body is None:
-        name = default_hand_name()
+        name = _declaring_hand(kf)
     if name is None:
         given = set(kf.joints)
         shared = {}
@@ -133,10 +142,23 @@ def _hand_for(kf: Keyframe, name: str | None, cache: dict[str, Hand]) -> Hand:
     if name not in cache:
         cache[name] = Hand.load(name)
     hand = cache[name]
-    if kf.palm_body is not None and kf.palm_body != hand.config.palm.body:
-        raise DemoError(f"{kf.where}: pose of body {kf.palm_body!r}, but hand {hand.name!r} has "
+    body = kf.palm_body if kf.palm_body is not None else srh_format(kf, hand).body
+    if body != hand.config.palm.body:
+        raise DemoError(f"{kf.where}: pose of body {body!r}, but hand {hand.name!r} has "
                         f"the palm body {hand.config.palm.body!r}")
     return hand
+
+
+def _declaring_hand(kf: Keyframe) -> str:
+    """The hand whose folder declares the keyframe's format (``[formats.srh_txt]``): the file
+    names no hand, so the declaration says whose it is; none or several: refused."""
+    declaring = [h for h in hand_names() if SRH_FORMAT in load_hand_config(h).formats]
+    if len(declaring) != 1:
+        who = (f"the hands {declaring} all declare" if declaring
+               else "no hand in configs/hands declares")
+        raise DemoError(f"{kf.where}: a {kf.format} file names no hand, and {who} "
+                        f"[formats.{SRH_FORMAT}] (give --hand)")
+    return declaring[0]
 
 
 def _import_one(path: Path, kf: Keyframe, hand: Hand,

@@ -11,16 +11,19 @@ does not care which format it came from. Units: metres, radians, quaternions w x
   ``table_top_z_m`` (a horizontal table top at that height).
 * The FSG authors' ``srh.txt``: per object five lines, objects separated by blank lines —
   ``ycb_<id>_<name>``; the object body's position; its quaternion; the scene keyframe's
-  ``qpos`` (the palm body's position and quaternion, then the finger joints of the hand in
-  model order, optionally followed by the 7 numbers of the headset camera's free joint); the
+  ``qpos`` (the palm body's position and quaternion, then the hand's joints in the format's
+  order, optionally followed by the 7 numbers of the headset camera's free joint); the
   actuator targets (not where the fingers stopped: ignored). Its object poses are those of the
   authors' re-centred meshes, not of our objects' frames, so an import must be told the
   transform between the two (:attr:`Keyframe.foreign_object_frame`). Their table top is at
   z = 0.70 m (the scene's table box; ``fsg_keyframes/README.md``).
 
-Why the format's joint order is "the hand's finger joints in model order": srh.txt names no
-joints, and its 22 values are the Shadow Hand's finger joints (no wrist) in the Menagerie
-model's order, which is our hand model's order of the joints its fingers list.
+srh.txt names no hand and no joints: its 22 values are the FSG authors' Shadow Hand's finger
+joints (no wrist) in their model's order. That is the hand's knowledge, so it is declared in the
+hand's folder: ``[formats.srh_txt]`` (:data:`SRH_FORMAT`) in
+``configs/hands/shadow_right/hand.toml`` gives the body the qpos places and the joint order
+(:func:`sim.hand.config.hand_format`); the hand that declares it is the one the import uses, and
+a hand that declares none cannot take the file.
 """
 
 from __future__ import annotations
@@ -33,11 +36,15 @@ from typing import Any
 import numpy as np
 
 from sim.demo import DemoError
+from sim.hand.config import HandFormat, hand_format
 from sim.hand.model import Hand
 
-__all__ = ["FORMAT_JSON", "SRH_TABLE_TOP_Z_M", "Keyframe", "joint_vector", "read_keyframes"]
+__all__ = ["FORMAT_JSON", "SRH_FORMAT", "SRH_TABLE_TOP_Z_M", "Keyframe", "joint_vector",
+           "read_keyframes", "srh_format"]
 
 FORMAT_JSON = "dexaug-eval-keyframes-1"
+#: the hand folder's declaration of the srh.txt format: ``[formats.srh_txt]``
+SRH_FORMAT = "srh_txt"
 #: the table top of the FSG authors' scene (their table box's top face), metres
 SRH_TABLE_TOP_Z_M = 0.70
 #: numbers of a free joint's qpos (position + quaternion): the palm body's, the camera's
@@ -53,10 +60,12 @@ class Keyframe:
         object_pos_m, object_quat_wxyz: the file's object frame in the world.
         foreign_object_frame: True when that frame is not our object's own (srh.txt: the
             authors' re-centred mesh), so the import needs the object-frame transform.
-        palm_body: the body whose pose is given (None: the hand's palm body, as srh.txt).
+        palm_body: the body whose pose is given (None: the body of the hand's declaration of
+            the format, as srh.txt: :func:`srh_format`).
         palm_pos_m, palm_quat_wxyz: that body in the world.
-        joints: joint name → angle (rad), or (srh.txt) the angles of the hand's finger joints
-            in model order, possibly followed by the camera's free joint.
+        joints: joint name → angle (rad), or (srh.txt) the angles of the joints in the order
+            the hand's ``[formats.srh_txt]`` declares, possibly followed by the camera's free
+            joint.
         table_top_z_m: height of the horizontal table top the object stood on, or None.
         entry: which of the file's keyframes (``objects.024_bowl``, ``line 6``).
         where: the file and entry, for messages (``FILE: objects.024_bowl``, ``FILE:6``).
@@ -183,6 +192,13 @@ def _read_srh(path: Path, text: str) -> list[Keyframe]:
     return out
 
 
+def srh_format(keyframe: Keyframe, hand: Hand) -> HandFormat:
+    """``hand``'s declaration of the srh.txt format (:data:`SRH_FORMAT`): the body its qpos
+    places and its joint order; a hand that declares none is refused in one line."""
+    return hand_format(hand.config, SRH_FORMAT, hand.joint_names,
+                       f"take the {keyframe.format} keyframe {keyframe.where}")
+
+
 def joint_vector(keyframe: Keyframe, hand: Hand) -> tuple[np.ndarray, list[str]]:
     """The hand's full joint vector (model order, rad) of ``keyframe``, and the joints the file
     leaves out (set to 0). Every finger joint must be given; a joint that is no finger's (a
@@ -190,12 +206,12 @@ def joint_vector(keyframe: Keyframe, hand: Hand) -> tuple[np.ndarray, list[str]]
     finger_joints = [j for j in hand.joint_names
                      if any(j in f.joints for f in hand.config.fingers)]
     if isinstance(keyframe.joints, tuple):
-        values = keyframe.joints
-        if len(values) not in (len(finger_joints), len(finger_joints) + _FREE):
+        values, order = keyframe.joints, srh_format(keyframe, hand).joint_order
+        if len(values) not in (len(order), len(order) + _FREE):
             raise DemoError(f"{keyframe.where}: qpos holds {_FREE + len(values)} numbers; hand "
-                            f"{hand.name!r} needs {_FREE} (palm body pose) + {len(finger_joints)} "
-                            f"(its finger joints in model order) [+ {_FREE} (camera free joint)]")
-        named = dict(zip(finger_joints, values, strict=False))
+                            f"{hand.name!r} needs {_FREE} (palm body pose) + {len(order)} "
+                            f"(its [formats.{SRH_FORMAT}] joints) [+ {_FREE} (camera free joint)]")
+        named = dict(zip(order, values, strict=False))
     else:
         named = keyframe.joints
     field = f"{keyframe.where}.joints_rad"

@@ -81,8 +81,11 @@ def demo_grasp_text(verdict: dict[str, Any] | None) -> str:
         return "not validated (validation was off, or the run predates this check)"
     head = "passed" if verdict["passed"] else f"failed ({verdict['failure']})"
     disp, rot = verdict.get("displacement_m"), verdict.get("rotation_deg")
-    # dgb measures from the object's initial world pose, the others in the palm frame
-    where = "from where it started" if verdict["protocol"] == "dgb" else "in the hand"
+    from dexaug.pipeline.protocol_facts import drift_reference
+
+    # measured from the object's initial world pose (dgb) or in the palm frame (the others)
+    where = {"start": "from where it started", "palm": "in the hand"}[
+        drift_reference(verdict["protocol"])]
     drift = "" if disp is None or rot is None else \
         f"; the object moved {1e3 * disp:.1f} mm and turned {rot:.1f}° {where}"
     return f"{head} — {verdict['protocol']}{drift}"

@@ -1,14 +1,16 @@
 """Hand descriptions read from ``configs/hands/<name>/hand.toml``.
 
 Everything hand-specific (which bodies are fingertips, which joints form a finger, coupling,
-fingertip vectors, palm frame) lives in these files, so the rest of dexaug works for any hand
-MuJoCo can load. This module only parses and checks the file on its own terms; ``sim.hand.model``
-checks it against the model.
+fingertip vectors, palm frame, and how other tools' file formats see the hand) lives in these
+files, so the rest of dexaug works for any hand MuJoCo can load. This module only parses and
+checks the file on its own terms; ``sim.hand.model`` checks it against the model (and
+:class:`augment.export.foreign.ForeignHand` a ``[formats.*]`` table, when a format is used).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -21,6 +23,11 @@ from sim.paths import CONFIG_DIR
 HANDS_DIR = CONFIG_DIR / "hands"
 DEFAULT_HAND_FILE = HANDS_DIR / "default.toml"
 POSTURES = ("open_pose", "preshape_pose", "close_pose")
+#: the foreign formats a hand may declare as ``[formats.<name>]``: the FSG authors' HDF5
+#: (``augment.export.fsg``), DexGraspBench's per-grasp files (``augment.export.bodex``) and the
+#: FSG authors' keyframe text ``srh.txt`` (``dexaug demo import``); a name outside this list is
+#: a typo, refused on load
+HAND_FORMATS = ("bodex", "fsg", "srh_txt")
 
 
 @dataclass(frozen=True)
@@ -77,6 +84,21 @@ class Mount:
 
 
 @dataclass(frozen=True)
+class HandFormat:
+    """``[formats.<name>]``: this hand as another tool's file format knows it. That tool's hand
+    (``their_hand``, said in messages) is placed by the pose of our body ``body`` and lists the
+    joints ``joint_order`` (names of our model's joints, radians) in that order; the joints of
+    ours it lacks are dropped on export (:mod:`augment.export.foreign` says which may be).
+    Why here: the order is a fact about this hand and that tool, not about the exporter, so a
+    second hand in the same format is a table in its folder, not a new list in code."""
+
+    name: str
+    their_hand: str
+    body: str
+    joint_order: tuple[str, ...]
+
+
+@dataclass(frozen=True)
 class HandConfig:
     name: str
     file: Path
@@ -99,6 +121,8 @@ class HandConfig:
     validate_kp_scale: float | None = None
     #: ``[mount]``: the hand's pose on an arm's flange (None: the hand has no arm mount)
     mount: Mount | None = None
+    #: ``[formats.<name>]``: the foreign formats this hand can be written in or read from
+    formats: dict[str, HandFormat] = field(default_factory=dict)
 
     def finger(self, name: str) -> FingerConfig:
         for f in self.fingers:
@@ -131,6 +155,25 @@ def _mount(root: Section) -> Mount | None:
     sec = root.section("mount")
     sec.reject_unknown({"pos", "quat_wxyz"})
     return Mount(pos=np.array(sec.floats("pos", 3)), quat_wxyz=_unit_quat(sec, "quat_wxyz"))
+
+
+def _formats(root: Section) -> dict[str, HandFormat]:
+    """The optional ``[formats.<name>]`` tables (:class:`HandFormat`), each checked on its own
+    terms: a known format name, the three keys, a non-empty joint order without repeats."""
+    formats = root.section("formats", {})
+    formats.reject_unknown(set(HAND_FORMATS))
+    out = {}
+    for name in formats.data:
+        sec = formats.section(name)
+        sec.reject_unknown({"their_hand", "body", "joint_order"})
+        order = tuple(sec.strs("joint_order"))
+        repeated = sorted({j for j in order if order.count(j) > 1})
+        if not order or repeated:
+            raise sec.error("joint_order", "expected the format's joints in its order, each once; "
+                            f"got {'none' if not order else f'{repeated} more than once'}")
+        out[name] = HandFormat(name=name, their_hand=sec.str("their_hand"), body=sec.str("body"),
+                               joint_order=order)
+    return out
 
 
 def _finger(sec: Section) -> FingerConfig:
@@ -197,11 +240,17 @@ def default_hand_name() -> str:
     checked against the hand folders (the one place a hand's name is chosen for the code)."""
     root = load_toml(DEFAULT_HAND_FILE)
     root.reject_unknown({"hand"})
-    name = root.str("hand")
+    return named_hand(root)
+
+
+def named_hand(sec: Section, key: str = "hand") -> str:
+    """The hand a config names under ``key`` (``hand = "<name>"``), checked against the hand
+    folders: a one-line error naming the file and key when there is no such folder."""
+    name = sec.str(key)
     known = hand_names()
     if name not in known:
-        raise root.error("hand", f"no hand folder {hand_dir(name)} with a hand.toml; known hands: "
-                         f"{known}")
+        raise sec.error(key, f"no hand folder {hand_dir(name)} with a hand.toml; known hands: "
+                        f"{known}")
     return name
 
 
@@ -209,6 +258,29 @@ def hand_config_path(name_or_path: str | Path) -> Path:
     """The TOML file of a hand given by name (``configs/hands/<name>/hand.toml``) or by path."""
     path = Path(name_or_path)
     return path if path.suffix == ".toml" else hand_dir(str(name_or_path)) / "hand.toml"
+
+
+def hand_format(cfg: HandConfig, name: str, joint_names: Sequence[str], doing: str) -> HandFormat:
+    """``cfg``'s ``[formats.<name>]``. A hand that declares none is refused in one line naming
+    its file, a hand that does declare it and the joints of that declaration ours lacks
+    (``joint_names``: this hand's model joints), so the reader sees whether copying that table
+    would do or this hand is not that tool's hand at all. ``doing``: what was asked, for the
+    message (``be written in the fsg layout``)."""
+    fmt = cfg.formats.get(name)
+    if fmt is not None:
+        return fmt
+    head = f"hand {cfg.name!r} cannot {doing}: {cfg.file} declares no [formats.{name}]"
+    others = [h for h in hand_names() if h != cfg.name and name in load_hand_config(h).formats]
+    if not others:
+        raise ConfigError(f"{head}, and no hand under {HANDS_DIR} does")
+    theirs = load_hand_config(others[0]).formats[name]
+    missing = [j for j in theirs.joint_order if j not in joint_names]
+    said = (f"{others[0]} declares it ({theirs.their_hand}: body {theirs.body!r}, the "
+            f"{len(theirs.joint_order)} joints {theirs.joint_order[0]} … {theirs.joint_order[-1]})")
+    more = f" and {len(missing) - 4} more" if len(missing) > 4 else ""
+    raise ConfigError(f"{head}; {said}, and hand {cfg.name!r} lacks {', '.join(missing[:4])}{more}"
+                      if missing else
+                      f"{head}; {said}: copy that table if hand {cfg.name!r} is that hand")
 
 
 def _kp_scale(sec: Section) -> float | None:
@@ -227,7 +299,7 @@ def load_hand_config(name_or_path: str | Path) -> HandConfig:
     root = load_toml(path)
     # [power] overrides configs/augment.toml [power] for this hand; augment.power checks it
     root.reject_unknown({"model", "palm", "fingers", "grasp", "geometry", "teleop", "validate",
-                         "mount", "power"})
+                         "mount", "power", "formats"})
     teleop_kp, validate_kp = (_kp_scale(root.section(name, {})) for name in ("teleop", "validate"))
     geometry = root.section("geometry")
     geometry.reject_unknown({"fingertip_width_m", "link_radius_m"})
@@ -274,4 +346,5 @@ def load_hand_config(name_or_path: str | Path) -> HandConfig:
         teleop_kp_scale=teleop_kp,
         validate_kp_scale=validate_kp,
         mount=_mount(root),
+        formats=_formats(root),
     )
