@@ -13,23 +13,31 @@ clears the table pre-filter, is reachable (IK at pregrasp, approach, grasp and l
 collision-free along the way and holds in simulation; the placements where at least one grasp
 holds; the failure counts; seconds per planned grasp (IK + planning + simulation) and per pair,
 and, as it lies, seconds making the grasps. ``--upright`` adds the carried grasps with the
-object upright only (as the demos recorded it).
+object upright only (as the demos recorded it). The rows go to a record as well
+(:func:`benchmarks.record.write_record`, ``benchmarks/measured/arm/``).
 
     .venv/bin/python benchmarks/bench_arm.py [--objects 005_tomato_soup_can ...] [--n 50]
         [--placements 20] [--arms ur5e kuka_iiwa_14] [--modes carried as-it-lies] [--upright]
-        [--images DIR]
+        [--images DIR] [--quick]
+
+``--quick``: the soup can, n = 8, 4 placements, the UR5e, carried only (a smoke run).
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 import tempfile
 import time
 from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from augment import dataset
+from benchmarks.record import write_record
 from dexaug.pipeline.arm_report import render_arm_result
 from dexaug.pipeline.options import AugmentOptions
 from dexaug.pipeline.rest_grasps import RestGrasps
@@ -54,22 +62,34 @@ def pct(k: int, n: int) -> str:
     return f"{100 * k / n:.1f}" if n else "–"
 
 
-def row(mode: str, arm: str, name: str, res: Sequence[ArmGraspResult], placements: int,
-        wall_s: float, making_s: float) -> str:
-    """One Markdown row of the module docstring's table."""
+def stats(mode: str, arm: str, name: str, res: Sequence[ArmGraspResult], placements: int,
+          wall_s: float, making_s: float) -> dict[str, Any]:
+    """One row of the module docstring's table, as data (counts; seconds)."""
     n = len(res)
     fails = Counter(r.failure for r in res if r.failure)
     clear = n - fails["table"]
     reach = clear - fails["unreachable"]
     free = reach - fails["collision"]
-    held = sum(r.passed for r in res)
-    held_at = len({r.placement for r in res if r.passed})
     planned = [r for r in res if r.times_s is not None]
     per = sum(r.plan_s + r.sim_s for r in planned) / len(planned) if planned else float("nan")
-    return (f"| {mode} | {arm} | {name} | {n / placements:.1f} | {n} | {pct(clear, n)} | "
-            f"{pct(reach, n)} | {pct(free, n)} | {pct(held, n)} | {held_at} / {placements} | "
-            f"{', '.join(f'{k} {v}' for k, v in sorted(fails.items()))} | {per:.2f} | "
-            f"{(wall_s - making_s) / max(n, 1):.3f} | {making_s:.0f} |")
+    return {"mode": mode, "arm": arm, "object": name, "placements": placements, "pairs": n,
+            "table_clear": clear, "reachable": reach, "collision_free": free,
+            "held": sum(r.passed for r in res),
+            "placements_held": len({r.placement for r in res if r.passed}),
+            "failures": dict(sorted(fails.items())), "s_per_planned_grasp": per,
+            "s_per_pair": (wall_s - making_s) / max(n, 1), "s_making_grasps": making_s}
+
+
+def row(r: dict[str, Any]) -> str:
+    """The Markdown row of :func:`stats`'s dict."""
+    n, placements = r["pairs"], r["placements"]
+    return (f"| {r['mode']} | {r['arm']} | {r['object']} | {n / placements:.1f} | {n} | "
+            f"{pct(r['table_clear'], n)} | {pct(r['reachable'], n)} | "
+            f"{pct(r['collision_free'], n)} | {pct(r['held'], n)} | "
+            f"{r['placements_held']} / {placements} | "
+            f"{', '.join(f'{k} {v}' for k, v in r['failures'].items())} | "
+            f"{r['s_per_planned_grasp']:.2f} | {r['s_per_pair']:.3f} | "
+            f"{r['s_making_grasps']:.0f} |")
 
 
 def main() -> None:
@@ -85,9 +105,14 @@ def main() -> None:
                         help="also the carried grasps with the object upright only")
     parser.add_argument("--images", type=Path, help="write the first held grasp of each row as "
                         "<mode>_<arm>_<object>.png here (the paper's Fig. 12)")
+    parser.add_argument("--quick", action="store_true", help="one object and arm, small (smoke run)")
     args = parser.parse_args()
+    if args.quick:
+        args.objects, args.n, args.placements = args.objects[:1], min(args.n, 8), 4
+        args.arms, args.modes = args.arms[:1], ["carried"]
     print(HEADER, flush=True)
-    upright_rows = []
+    rows: list[dict[str, Any]] = []
+    upright_rows: list[dict[str, Any]] = []
     with tempfile.TemporaryDirectory() as tmp:
         for name in args.objects:
             demo = load_demo(DEMOS / f"{name}.json")
@@ -112,7 +137,8 @@ def main() -> None:
                     _, res = evaluate_on_arm(load_arm_config(arm), hand, obj, source,
                                              placements=args.placements, seed=0)
                     wall = time.perf_counter() - t0
-                    print(row(mode, arm, name, res, args.placements, wall, making_s), flush=True)
+                    rows.append(stats(mode, arm, name, res, args.placements, wall, making_s))
+                    print(row(rows[-1]), flush=True)
                     if args.images and (held_one := next((r for r in res if r.passed), None)):
                         render_arm_result(ArmScene(load_arm_config(arm), hand, obj), held_one,
                                       args.images / f"{mode}_{arm}_{name}.png")
@@ -124,11 +150,15 @@ def main() -> None:
                 t0 = time.perf_counter()
                 _, up = evaluate_on_arm(load_arm_config(arm), hand, obj, grasps,
                                         placements=args.placements, seed=0, rest_index=upright)
-                upright_rows.append(row("carried, upright", arm, name, up, args.placements,
-                                        time.perf_counter() - t0, 0.0))
+                upright_rows.append(stats("carried, upright", arm, name, up, args.placements,
+                                          time.perf_counter() - t0, 0.0))
     if upright_rows:
         print("\nObject upright (as in the demos), random position and yaw:\n" + HEADER)
-        print("\n".join(upright_rows))
+        print("\n".join(row(r) for r in upright_rows))
+    hands = {load_demo(DEMOS / f"{name}.json").hand for name in args.objects}
+    path = write_record("arm", rows + upright_rows, config=vars(args),
+                        hand=next(iter(hands)) if len(hands) == 1 else None, objects=args.objects)
+    print(f"record: {path}")
 
 
 if __name__ == "__main__":

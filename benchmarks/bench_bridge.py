@@ -4,7 +4,8 @@ that answers it (matched on ``seq``) received, with the view stream on at 30 Hz 
 The bridge runs in its own process (as ``dexaug bridge`` would), the operator side (publisher at
 90 Hz, replaying the real Quest 3 capture in a loop with fresh sequence numbers, and the state
 subscriber) in this one; both are zenoh peers on 127.0.0.1 with multicast scouting off.
-Target: median ≤ 5 ms.
+Target: median ≤ 5 ms. The figures go to a record as well (:func:`benchmarks.record.write_record`,
+``benchmarks/measured/bridge/``).
 
     .venv/bin/python benchmarks/bench_bridge.py [--seconds 10] [--rate-hz 90] [--no-view]
 """
@@ -16,11 +17,16 @@ import dataclasses
 import json
 import multiprocessing as mp
 import os
+import sys
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from benchmarks.record import write_record
 from sim.paths import SHARED_ASSETS
 
 CAPTURE = SHARED_ASSETS / "handdata" / "quest3_webxr" / "cap.min.js"
@@ -108,6 +114,13 @@ def main() -> None:
           f"({views[0] / args.seconds:.1f} Hz)")
     print(f"latency /hands → /state: median {np.median(warm):.2f} ms, "
           f"p99 {np.percentile(warm, 99):.2f} ms, max {warm.max():.2f} ms (target median ≤ 5 ms)")
+    row = {"sent": n, "answered": len(lat), "view_frames": views[0],
+           "view_hz": views[0] / args.seconds, "median_ms": float(np.median(warm)),
+           "p99_ms": float(np.percentile(warm, 99)), "max_ms": float(warm.max()),
+           "warm_up_skipped": len(lat) - len(warm)}
+    path = write_record("bridge", [row], summary=row,
+                        config={**vars(args), "capture": str(CAPTURE), "view": not args.no_view})
+    print(f"record: {path}")
 
 
 if __name__ == "__main__":

@@ -22,7 +22,9 @@ and leaves their split free. Three measurements:
     A squeeze whose forces do not balance on a held object shoves the free one. Reports how
     well that predicts the stored ``dgb`` verdict (AUC; pass rate of the better half).
 
-Up to ``--n`` grasps per verdict and object (default 200); two processes.
+Up to ``--n`` grasps per verdict and object (default 200); two processes. Each printed row goes
+to a record as well (:func:`benchmarks.record.write_record`,
+``benchmarks/measured/dgb_demo_hand/``; ``what``: press, verdicts or imbalance).
 Units: metres, newtons, radians (degrees where printed so).
 """
 
@@ -30,14 +32,19 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from collections.abc import Callable, Iterator
 from multiprocessing import Pool
 from pathlib import Path
+from typing import Any
 
 import mujoco
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 from augment import dataset
+from benchmarks.record import write_record
 from sim.grasp import Grasp
 from sim.hand.model import Hand
 from sim.validate.diagnose_dgb import hand_wrench, held_closing, held_steps
@@ -69,7 +76,8 @@ def tied(compose: Callable[[Scene], mujoco.MjSpec]) -> Callable[[Scene], mujoco.
     return composed
 
 
-def press(demo_path: Path, press_rad: float) -> None:
+def press(demo_path: Path, press_rad: float) -> list[dict[str, Any]]:
+    """Print and return one row per coupled finger (angles in rad)."""
     doc = json.loads(demo_path.read_text())
     hand = Hand.load(doc["hand"])
     validator = Validator(hand, load_object(doc["object"]))
@@ -84,12 +92,18 @@ def press(demo_path: Path, press_rad: float) -> None:
     held_steps(scene, round(1.0 / scene.model.opt.timestep))
     _, _, touching = hand_wrench(scene)
     m, d, names = scene.model, scene.data, hand.joint_names
+    rows = []
     for follower, leader, _ in hand.couplings:
         now = [d.qpos[m.joint(HAND_PREFIX + names[k]).qposadr[0]] for k in (leader, follower)]
         body = m.jnt_bodyid[m.joint(HAND_PREFIX + names[follower]).id]
         print(f"| {demo_path.stem} | {names[leader]}/{names[follower]} | "
               f"{q[leader]:.2f}/{q[follower]:.2f} | {now[0]:.2f}/{now[1]:.2f} | "
               f"{'yes' if body in touching else 'no'} |")
+        rows.append({"what": "press", "demo": demo_path.stem, "object": doc["object"],
+                     "hand": doc["hand"], "pair": f"{names[leader]}/{names[follower]}",
+                     "demonstrated_rad": [q[leader], q[follower]], "after_press_rad": now,
+                     "touches": body in touching})
+    return rows
 
 
 def _init(hand: str, name: str, held: bool) -> None:
@@ -151,11 +165,13 @@ def main() -> None:
     ap.add_argument("--press", type=float, default=0.3,
                     help="press: tendon target past the demonstrated J1 + J2, rad (0.3)")
     args = ap.parse_args()
+    rows: list[dict[str, Any]] = []
     if args.what == "press":
         print("| demo | pair | J2/J1 demonstrated | J2/J1 after 1 s pressing | touches |")
         print("|---|---|---|---|---|")
         for path in args.paths:
-            press(path, args.press)
+            rows += press(path, args.press)
+        _record(rows, args)
         return
     if args.what == "verdicts":
         print("| object | grasps | pass, split free (benchmark) | pass, split held | "
@@ -172,12 +188,32 @@ def main() -> None:
                 held = np.array(run_pool(hand, name, True, _verdict, jobs))
                 print(f"| {name} | {len(jobs)} | {free.sum()} | {held.sum()} | "
                       f"{(free & ~held).sum()} | {(~free & held).sum()} |")
+                rows.append({"what": "verdicts", "dataset": path, "object": name, "hand": hand,
+                             "grasps": len(jobs), "pass_split_free": int(free.sum()),
+                             "pass_split_held": int(held.sum()),
+                             "pass_to_fail": int((free & ~held).sum()),
+                             "fail_to_pass": int((~free & held).sum())})
                 continue
             score = np.array(run_pool(hand, name, False, _imbalance, jobs))
             lower = np.argsort(score)[:len(score) // 2]
             print(f"| {name} | {len(jobs)} | {labels.sum()} | {auc(labels, score):.2f} | "
                   f"{np.median(score[labels]):.2f} / {np.median(score[~labels]):.2f} | "
                   f"{100 * labels[lower].mean():.1f} % |")
+            rows.append({"what": "imbalance", "dataset": path, "object": name, "hand": hand,
+                         "grasps": len(jobs), "stored_passes": int(labels.sum()),
+                         "auc": auc(labels, score),
+                         "median_pass_n": float(np.median(score[labels])) if labels.any() else None,
+                         "median_fail_n": float(np.median(score[~labels])) if (~labels).any() else None,
+                         "lower_half_pass_rate": float(labels[lower].mean())})
+    _record(rows, args)
+
+
+def _record(rows: list[dict[str, Any]], args: argparse.Namespace) -> None:
+    hands = {str(r["hand"]) for r in rows}
+    path = write_record("dgb_demo_hand", rows, config=vars(args),
+                        hand=next(iter(hands)) if len(hands) == 1 else None,
+                        objects=sorted({str(r["object"]) for r in rows}))
+    print(f"record: {path}")
 
 
 if __name__ == "__main__":

@@ -11,18 +11,25 @@ direction each failing grasp failed in.
 
     .venv/bin/python benchmarks/bench_dgb_drift.py DATASET.h5 [DATASET.h5 ...] [--n 40]
 
-Prints one Markdown table. The stored verdicts are recomputed (the replay is the validator's).
+Prints one Markdown table and writes its rows as a record (:func:`benchmarks.record.write_record`,
+``benchmarks/measured/dgb_drift/``). The stored verdicts are recomputed (the replay is the
+validator's).
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 from collections import Counter
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 from augment import dataset
+from benchmarks.record import write_record
 from sim.grasp import Grasp
 from sim.hand.model import Hand
 from sim.validate.config import ValidateConfig
@@ -61,19 +68,26 @@ def replay(path: Path, n: int) -> list[dict[str, object]]:
     return rows
 
 
-def line(label: str, rows: list[dict[str, object]], limits: tuple[float, float]) -> str:
-    """One Markdown row for ``rows`` (one object and verdict, at least one grasp); ``limits``:
-    the benchmark's (millimetres, degrees)."""
-    def med(key: str) -> str:
-        return f"{np.median([float(r[key]) for r in rows]):.1f}"
+def group(label: str, rows: list[dict[str, object]], limits: tuple[float, float]) -> dict[str, Any]:
+    """One row of the table for ``rows`` (one object and verdict, at least one grasp), as data:
+    median drifts per stage (mm, degrees), the counts and the failing push directions;
+    ``limits``: the benchmark's (millimetres, degrees)."""
+    return {"group": label, "grasps": len(rows),
+            **{k: float(np.median([float(r[k]) for r in rows]))
+               for s in STAGES for k in (f"{s}_mm", f"{s}_deg")},
+            "squeeze_half_limit": sum(float(r["squeeze_deg"]) >= 7.5 for r in rows),
+            "out_at_squeeze": sum(float(r["squeeze_deg"]) >= limits[1]
+                                  or float(r["squeeze_mm"]) >= limits[0] for r in rows),
+            "failing_push": dict(sorted(Counter(str(r["direction"]) for r in rows
+                                                if r["direction"]).items()))}
 
-    drift = " | ".join(f"{med(s + '_mm')} mm, {med(s + '_deg')}°" for s in STAGES)
-    half = sum(float(r["squeeze_deg"]) >= 7.5 for r in rows)
-    out = sum(float(r["squeeze_deg"]) >= limits[1] or float(r["squeeze_mm"]) >= limits[0]
-              for r in rows)
-    dirs = Counter(str(r["direction"]) for r in rows if r["direction"])
-    return (f"| {label} | {len(rows)} | {drift} | {half} | {out} | "
-            f"{' '.join(f'{k}:{v}' for k, v in sorted(dirs.items()))} |")
+
+def line(g: dict[str, Any]) -> str:
+    """The Markdown row of :func:`group`'s dict."""
+    drift = " | ".join(f"{g[s + '_mm']:.1f} mm, {g[s + '_deg']:.1f}°" for s in STAGES)
+    return (f"| {g['group']} | {g['grasps']} | {drift} | {g['squeeze_half_limit']} | "
+            f"{g['out_at_squeeze']} | "
+            f"{' '.join(f'{k}:{v}' for k, v in g['failing_push'].items())} |")
 
 
 def main() -> None:
@@ -87,15 +101,25 @@ def main() -> None:
     print("| object (squeeze convention) / verdict | grasps | after grasp stage | after squeeze "
           "| idle 0.5 s more | squeeze ≥ 7.5° | out of limits at squeeze | failing push |")
     print("|---|---|---|---|---|---|---|---|")
+    out: list[dict[str, Any]] = []
+    hands: set[str] = set()
     for path in args.datasets:
         rows = replay(path, args.n)
         for key in sorted({(str(r["object"]), str(r["convention"])) for r in rows}):
             for verdict in (True, False):
-                group = [r for r in rows
-                         if (r["object"], r["convention"]) == key and r["passed"] == verdict]
-                if group:
-                    print(line(f"{key[0]} ({key[1]}) / {'pass' if verdict else 'fail'}", group,
-                               limits))
+                members = [r for r in rows
+                           if (r["object"], r["convention"]) == key and r["passed"] == verdict]
+                if members:
+                    out.append({"dataset": path, "object": key[0], "convention": key[1],
+                                "passed": verdict,
+                                **group(f"{key[0]} ({key[1]}) / {'pass' if verdict else 'fail'}",
+                                        members, limits)})
+                    print(line(out[-1]))
+        hands |= {str(t.attrs["hand"]) for t in dataset.load(path).values()}
+    record = write_record("dgb_drift", out, config={**vars(args), "limits_mm_deg": limits},
+                          hand=next(iter(hands)) if len(hands) == 1 else None,
+                          objects=sorted({r["object"] for r in out}))
+    print(f"record: {record}")
 
 
 if __name__ == "__main__":

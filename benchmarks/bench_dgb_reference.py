@@ -10,7 +10,11 @@ same figures over the test's subset, through :func:`benchmarks.record.write_reco
 (``benchmarks/measured/dgb_reference/``). The per-object table with the speed is
 ``benchmarks/bench_dgb_agreement.py``.
 
-Usage: ``.venv/bin/python benchmarks/bench_dgb_reference.py [--variants ...] [--workers 2]``.
+``--quick`` validates every 10th grasp of each object only (30 per variant: the CI-size run of
+``benchmarks/headline.py run --quick``; its figures are not the full set's).
+
+Usage: ``.venv/bin/python benchmarks/bench_dgb_reference.py [--variants ...] [--workers 2]
+[--quick]``.
 """
 
 from __future__ import annotations
@@ -38,6 +42,8 @@ from sim.validate.dgb_reference import (
 REFERENCE = REPO_ROOT.parent / "shared" / "reference" / "dexgraspbench" / "grasps.jsonl"
 #: the test's sampling step within each stratum (tests/test_dgb_reference.py: EVERY)
 EVERY = 4
+#: ``--quick``: every QUICK_EVERY-th grasp of each object
+QUICK_EVERY = 10
 
 
 def stratified_subset(refs: list[ReferenceGrasp], variant: str,
@@ -56,9 +62,15 @@ def main() -> None:
     ap.add_argument("--variants", nargs="*",
                     default=[v for v, (_, mass) in VARIANTS.items() if mass == "dgb"])
     ap.add_argument("--workers", type=int, default=default_workers())
+    ap.add_argument("--quick", action="store_true",
+                    help=f"every {QUICK_EVERY}th grasp of each object only (CI size)")
     args = ap.parse_args()
     hand = reference_hand(REFERENCE)
     refs = load_reference(REFERENCE, hand)
+    every = QUICK_EVERY if args.quick else 1
+    if every > 1:   # the same grasps in every variant: every k-th of each object, file order
+        refs = [r for obj in sorted({r.object for r in refs})
+                for r in [x for x in refs if x.object == obj][::every]]
     objects = sorted({r.object for r in refs})
     rows, summary = [], {}
     for variant in args.variants:
@@ -101,6 +113,7 @@ def main() -> None:
         rows += vrows
     path = write_record("dgb_reference", rows, summary=summary,
                         config={"variants": args.variants, "workers": args.workers,
+                                "every": every,
                                 "test_subset_every": EVERY, "reference": str(REFERENCE)},
                         hand=hand.name, objects=objects)
     print(f"record: {path}")

@@ -27,20 +27,28 @@ with the loads of the dataset's protocol, and compares with the stored verdicts:
 
     .venv/bin/python benchmarks/bench_grip_predictor.py DATASET.h5 [DATASET.h5 ...] [--bins]
 
-Prints one Markdown table, a row per dataset and object and one over all of them.
+Prints one Markdown table, a row per dataset and object and one over all of them, and writes
+those rows (with the bins and the fit) as a record (:func:`benchmarks.record.write_record`,
+``benchmarks/measured/grip_predictor/``).
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 from collections import Counter
 from itertools import pairwise
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 from scipy.optimize import minimize
 
 from augment import dataset
+from benchmarks.record import write_record
 from sim.grasp import Grasp
 from sim.hand.model import Hand
 from sim.metrics.holding import HoldLoads, finger_contacts
@@ -97,19 +105,28 @@ def rows_of(path: Path, cfg: ValidateConfig) -> list[dict[str, object]]:
     return out
 
 
-def line(label: str, r: dict[str, np.ndarray]) -> str:
+def stats(label: str, r: dict[str, np.ndarray]) -> dict[str, Any]:
+    """One row of the table as data (shares as fractions)."""
     y, ratio = r["passed"], r["ratio"]
     pred = np.isfinite(ratio) & (ratio <= r["budget"])
     tp, fp, fn = int((pred & y).sum()), int((pred & ~y).sum()), int((~pred & y).sum())
-    precision = tp / max(tp + fp, 1)
-    recall = tp / max(tp + fn, 1)
-    kept_pass = Counter(int(k) for k in r["fingers"][y])
-    fingers = " ".join(f"{k}:{v}" for k, v in sorted(kept_pass.items()))
     over = ~(r["effort"] <= 1.0)
-    return (f"| {label} | {len(y)} | {y.mean():.1%} | {auc(r['effort'], y):.2f} | {auc(ratio, y):.2f} | "
-            f"{auc(-r['epsilon'], y):.2f} | {over.mean():.1%} ({int((over & y).sum())} passed) | "
-            f"{pred.mean():.1%} | {precision:.1%} | {recall:.1%} | {np.mean(~np.isfinite(ratio)):.1%} | "
-            f"{fingers} |")
+    return {"label": label, "grasps": len(y), "pass": float(y.mean()),
+            "auc_effort": auc(r["effort"], y), "auc_grip_ratio": auc(ratio, y),
+            "auc_epsilon": auc(-r["epsilon"], y), "effort_over_1": float(over.mean()),
+            "effort_over_1_passed": int((over & y).sum()), "squeeze_ge_grip": float(pred.mean()),
+            "precision": tp / max(tp + fp, 1), "recall": tp / max(tp + fn, 1),
+            "grip_inf": float(np.mean(~np.isfinite(ratio))),
+            "passing_by_fingers": dict(sorted(Counter(int(k) for k in r["fingers"][y]).items()))}
+
+
+def line(row: dict[str, Any]) -> str:
+    """The Markdown row of :func:`stats`'s dict."""
+    fingers = " ".join(f"{k}:{v}" for k, v in row["passing_by_fingers"].items())
+    return (f"| {row['label']} | {row['grasps']} | {row['pass']:.1%} | {row['auc_effort']:.2f} | "
+            f"{row['auc_grip_ratio']:.2f} | {row['auc_epsilon']:.2f} | {row['effort_over_1']:.1%} "
+            f"({row['effort_over_1_passed']} passed) | {row['squeeze_ge_grip']:.1%} | "
+            f"{row['precision']:.1%} | {row['recall']:.1%} | {row['grip_inf']:.1%} | {fingers} |")
 
 
 #: effort bin edges of ``--bins`` (fraction of the force limits; 1: the actuators' limit)
@@ -153,18 +170,30 @@ def main() -> None:
     print("| dataset / object | grasps | pass | AUC effort | AUC grip ratio | AUC ε | effort > 1 | "
           "squeeze ≥ grip | precision | recall | grip inf | fingers of passing grasps |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    table = []
     for r in rows:
-        print(line(f"{r['source']} / {r['object']} ({r['protocol']})", r))
+        table.append({"source": r["source"], "object": r["object"], "protocol": r["protocol"],
+                      **stats(f"{r['source']} / {r['object']} ({r['protocol']})", r)})
+        print(line(table[-1]))
     keys = ("ratio", "budget", "passed", "fingers", "epsilon", "effort")
     pooled = {k: np.concatenate([r[k] for r in rows]) for k in keys}
-    print(line(f"all ({len({r['object'] for r in rows})} objects)", pooled))
+    table.append({"source": "all", **stats(f"all ({len({r['object'] for r in rows})} objects)",
+                                           pooled)})
+    print(line(table[-1]))
+    summary: dict[str, Any] = {"all": table[-1]}
     if args.bins:
         print("\n| actuator effort | grasps | passed | pass rate |\n|---|---|---|---|")
-        print("\n".join(effort_bins(pooled["effort"], pooled["passed"])))
+        bins = effort_bins(pooled["effort"], pooled["passed"])
+        print("\n".join(bins))
         a, b = logistic_fit(pooled["effort"], pooled["passed"])
-        cross = ", ".join(f"{p:g} at {(np.log(p / (1 - p)) - a) / b:.3f}"
-                          for p in (0.5, 0.3, 0.29, 0.2))
+        crossings = {p: (np.log(p / (1 - p)) - a) / b for p in (0.5, 0.3, 0.29, 0.2)}
+        cross = ", ".join(f"{p:g} at {e:.3f}" for p, e in crossings.items())
         print(f"\nlogistic fit: p(pass) = σ({a:.2f} {b:+.2f}·effort); p crosses {cross}")
+        summary.update(effort_bins_markdown=bins, logistic_a=a, logistic_b=b,
+                       effort_at_pass_chance={str(p): e for p, e in crossings.items()})
+    path = write_record("grip_predictor", table, summary=summary, config=vars(args),
+                        objects=sorted({r["object"] for r in rows}))
+    print(f"record: {path}")
 
 
 if __name__ == "__main__":

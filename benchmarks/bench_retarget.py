@@ -20,6 +20,9 @@ surface over the grasp phase, for the legacy mapping (tip-joint targets, no phal
 snapping), pad targets + phalanx tasks without the object, and with the object's surface
 given (snapping; acceptance ≤ 3 mm), with the per-frame wall time of each; once with the
 tracked pads on the surface and once 5 mm in front of it (real tracked grasps: 3–7 mm).
+
+Both tables' rows go to a record as well (:func:`benchmarks.record.write_record`,
+``benchmarks/measured/retarget/``; ``table``: iterations or contact).
 """
 
 from __future__ import annotations
@@ -33,11 +36,13 @@ import argparse  # noqa: E402
 import dataclasses  # noqa: E402
 import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
+from typing import Any  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numpy as np  # noqa: E402
 
+from benchmarks.record import write_record  # noqa: E402
 from sim.hand.config import default_hand_name  # noqa: E402
 from sim.hand.model import Hand  # noqa: E402
 from sim.paths import SHARED_ASSETS  # noqa: E402
@@ -103,6 +108,7 @@ def main() -> None:
     print(header)
     print("-" * (len(header) + 40))
     iterations = sorted({config.iterations, 1, 2, 3})
+    rows: list[dict[str, Any]] = []
     for iters in iterations:
         cfg = dataclasses.replace(config, iterations=iters)
         trace, times = _run(hand, cfg, frames, args.repeats)
@@ -117,14 +123,29 @@ def main() -> None:
               f"{times.max() * 1e3:7.3f} | "
               f"{', '.join(f'{d * 100:.2f}' for d in robot[pinch]):>20} "
               f"{robot[open_].min() * 100:11.2f} | {errs}")
+        rows.append({"table": "iterations", "iterations": iters,
+                     "configured": iters == config.iterations,
+                     "median_ms": float(np.median(times) * 1e3),
+                     "p99_ms": float(np.percentile(times, 99) * 1e3),
+                     "max_ms": float(times.max() * 1e3), "pinch_robot_cm": robot[pinch] * 100,
+                     "open_min_cm": float(robot[open_].min() * 100),
+                     "tip_error_mm": {n: {"median": float(np.median(err[:, k])),
+                                          "p95": float(np.percentile(err[:, k], 95))}
+                                      for k, n in enumerate(trace.finger_names)}})
     print()
     print("* = configured (configs/teleop.toml [retarget] iterations); budget: median ≤ 1 ms, "
           "p99 ≤ 3 ms")
-    _contact(hand, config, args.repeats)
+    rows += _contact(hand, config, args.repeats)
+    path = write_record("retarget", rows,
+                        config={**vars(args), "pinned": pinned, "ik_iterations": config.iterations,
+                                "operator_pinch_cm": ops[pinch] * 100,
+                                "open_frames": int(open_.sum())},
+                        hand=hand.name)
+    print(f"record: {path}")
 
 
-def _contact(hand: Hand, config, repeats: int) -> None:
-    """The contact section of the module docstring."""
+def _contact(hand: Hand, config, repeats: int) -> list[dict[str, Any]]:
+    """The contact section of the module docstring: prints its table, returns its rows."""
     from tests.test_retarget_contact import (
         OBJECTS,
         legacy_config,
@@ -137,6 +158,7 @@ def _contact(hand: Hand, config, repeats: int) -> None:
     print(f"{'object':>20} {'gap':>4} {'mapping':>22} | {'pad–surface median mm':>21} "
           f"{'per finger mm':>28} | {'median ms':>9} {'p99 ms':>7}")
     print("-" * 120)
+    rows = []
     variants = (("legacy (tip joints)", legacy_config(config), False),
                 ("pads + phalanges", config, False), ("pads + phalanges + snap", config, True))
     for name, gap_m in ((n, g) for g in (0.0, 0.005) for n in OBJECTS):
@@ -155,9 +177,14 @@ def _contact(hand: Hand, config, repeats: int) -> None:
             t = np.concatenate(times) * 1e3
             print(f"{name:>20} {gap_m * 1e3:4.0f} {label:>22} | {np.median(d):21.2f} {per:>28} | "
                   f"{np.median(t):9.3f} {np.percentile(t, 99):7.3f}")
+            rows.append({"table": "contact", "object": name, "gap_mm": gap_m * 1e3,
+                         "mapping": label, "pad_surface_median_mm": float(np.median(d)),
+                         "per_finger_mm": dict(zip(ep.touching, np.median(d, axis=0), strict=True)),
+                         "median_ms": float(np.median(t)), "p99_ms": float(np.percentile(t, 99))})
     print("gap: where the tracked human pads stop in front of the surface (mm; real tracked grasps: "
           "3–7); fingers: those whose pad is at that gap at the grasp; acceptance: pad–surface "
           "median ≤ 3 mm with snapping")
+    return rows
 
 
 if __name__ == "__main__":

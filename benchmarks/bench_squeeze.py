@@ -1,26 +1,34 @@
 """Does the squeeze hold FSG grasps? Pass rates and failure counts of lift-drop and six-dir.
 
 FSG precision grasps load a few fingertips only, so they show whether the validator's squeeze
-presses hard enough (see the "Grasp validation" section of the README). Workload: FSG grasps
+presses hard enough (docs/validation.md). Workload: FSG grasps
 (manual AutoWS workspace, link penetration check on) of each object, validated with both
 protocols on all workers. ``--save``/``--load`` keep the grasps in an ``.npz`` so that two
 validator versions (or two ``--config`` files) are compared on exactly the same grasps; FSG
-under a time budget is not guaranteed to return the same grasps twice. Prints one Markdown table.
+under a time budget is not guaranteed to return the same grasps twice. Prints one Markdown table
+and writes its rows as a record (:func:`benchmarks.record.write_record`,
+``benchmarks/measured/squeeze/``).
 
     .venv/bin/python benchmarks/bench_squeeze.py [--n 40] [--seed 1] [--save grasps.npz]
     .venv/bin/python benchmarks/bench_squeeze.py --load grasps.npz [--config my_validate.toml]
+
+``--quick``: the first object at n = 8 (a smoke run, not the figures).
 """
 
 from __future__ import annotations
 
 import argparse
 import logging
+import sys
 import time
 from collections import Counter
 from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from benchmarks.record import write_record
 from sim.grasp import Grasp
 from sim.hand.config import default_hand_name
 from sim.hand.model import Hand
@@ -76,7 +84,10 @@ def main() -> None:
     parser.add_argument("--config", type=Path, help="validate.toml to use (default: configs/)")
     parser.add_argument("--save", type=Path, help="write the generated grasps here (.npz)")
     parser.add_argument("--load", type=Path, help="validate these grasps instead of running FSG")
+    parser.add_argument("--quick", action="store_true", help="one object, n = 8 (smoke run)")
     args = parser.parse_args()
+    if args.quick:
+        args.objects, args.n = args.objects[:1], min(args.n, 8)
     logging.basicConfig(level=logging.ERROR)
     hand = Hand.load(args.hand)
     if args.load:
@@ -87,6 +98,7 @@ def main() -> None:
             save(args.save, grasps)
     print("| object | protocol | grasps | pass | pass rate | failures | validations/s/core |")
     print("| --- | --- | --- | --- | --- | --- | --- |")
+    rows = []
     for name, gs in grasps.items():
         for protocol in args.protocols:
             start = time.perf_counter()
@@ -99,6 +111,11 @@ def main() -> None:
             rate = passed / len(results) if results else float("nan")
             print(f"| {name} | {protocol} | {len(results)} | {passed} | {rate:.0%} | {failures} | "
                   f"{len(results) / seconds / args.workers:.1f} |", flush=True)
+            rows.append({"object": name, "protocol": protocol, "grasps": len(results),
+                         "passed": passed, "pass_rate": rate, "failures": dict(sorted(fails.items())),
+                         "validations_per_s_per_core": len(results) / seconds / args.workers})
+    path = write_record("squeeze", rows, config=vars(args), hand=hand.name, objects=list(grasps))
+    print(f"record: {path}")
 
 
 if __name__ == "__main__":

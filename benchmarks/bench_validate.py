@@ -2,7 +2,8 @@
 
 Workload: for each object, the hand's reference grasps (configs/hands/<hand>/grasps.toml) plus random
 perturbations of them (palm ±5 mm / ±5°, joints ±0.05 rad), so passes and the usual failures
-(penetration, slipping, lost contact) are all in the mix. Prints one Markdown table.
+(penetration, slipping, lost contact) are all in the mix. Prints one Markdown table and writes
+its rows as a record (:func:`benchmarks.record.write_record`, ``benchmarks/measured/validate/``).
 
     .venv/bin/python benchmarks/bench_validate.py [--n 40] [--objects 004_sugar_box 024_bowl]
 """
@@ -10,11 +11,16 @@ perturbations of them (palm ±5 mm / ±5°, joints ±0.05 rad), so passes and th
 from __future__ import annotations
 
 import argparse
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from benchmarks.record import write_record
 from sim.grasp import Grasp
 from sim.hand.config import default_hand_name
 from sim.hand.model import Hand
@@ -48,6 +54,7 @@ def main() -> None:
     refs = load_reference_grasps(hand)
     print("| object | protocol | workers | grasps | pass | validations/s | per core | note |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- |")
+    rows = []
     for obj in args.objects:
         base = [r.grasp for r in refs if r.object == obj]
         if not base:
@@ -63,6 +70,9 @@ def main() -> None:
             passed = sum(r.passed for r in results)
             print(f"| {obj} | {protocol} | 1 | {len(grasps)} | {passed} | {rate:.1f} | {rate:.1f} | "
                   "in-process, scene built |", flush=True)
+            rows.append({"object": obj, "protocol": protocol, "path": "in-process", "workers": 1,
+                         "grasps": len(grasps), "passed": passed, "validations_per_s": rate,
+                         "per_core": rate})
             for workers in args.workers:
                 start = time.perf_counter()
                 stamps: list[float] = []
@@ -75,6 +85,13 @@ def main() -> None:
                       f"{steady:.1f} | {steady / workers:.1f} | sim.validate.batch steady state "
                       f"({len(grasps) / total:.1f}/s incl. {stamps[0] - start:.1f} s start-up) |",
                       flush=True)
+                rows.append({"object": obj, "protocol": protocol, "path": "validate_many",
+                             "workers": workers, "grasps": len(grasps), "passed": passed,
+                             "validations_per_s": steady, "per_core": steady / workers,
+                             "with_start_up_per_s": len(grasps) / total,
+                             "start_up_s": stamps[0] - start})
+    path = write_record("validate", rows, config=vars(args), hand=hand.name, objects=args.objects)
+    print(f"record: {path}")
 
 
 if __name__ == "__main__":

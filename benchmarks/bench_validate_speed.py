@@ -12,7 +12,9 @@ exist). Rows, all on the same grasps:
   grasp by grasp), workers started and their validators built before the clock starts.
 
 Steps are counted by running each grasp's program once (they are the same in every row), and
-every row's verdicts are compared with the python loop's. Prints one Markdown table.
+every row's verdicts are compared with the python loop's. Prints one Markdown table and writes
+its rows as a record (:func:`benchmarks.record.write_record`,
+``benchmarks/measured/validate_speed/``).
 
     .venv/bin/python benchmarks/bench_validate_speed.py [--object 005_tomato_soup_can] [--n 1000]
 """
@@ -20,12 +22,17 @@ every row's verdicts are compared with the python loop's. Prints one Markdown ta
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
+from typing import Any
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from augment import dataset
 from augment.autows.build import build_workspace
 from augment.object_cloud import object_cloud
+from benchmarks.record import write_record
 from dexaug.pipeline.run import generate_grasps
 from sim.grasp import Grasp
 from sim.hand.config import default_hand_name
@@ -83,13 +90,14 @@ def main() -> None:
     v = Validator(hand, load_object(args.object))
     steps = count_steps(v, grasps, args.protocol)
     per_grasp = steps / len(grasps)
-    rows = []
+    rows: list[dict[str, Any]] = []
 
     def row(name: str, n: int, seconds: float, verdicts: list, ref: list) -> None:
-        agree = sum(a == b for a, b in zip(verdicts, ref, strict=False))
         rate = n / seconds
-        rows.append(f"| {name} | {n} | {sum(p for p, _ in verdicts)} | {rate:.1f} | "
-                    f"{rate * per_grasp:,.0f} | {agree}/{min(len(verdicts), len(ref))} |")
+        rows.append({"path": name, "grasps": n, "passed": sum(p for p, _ in verdicts),
+                     "grasps_per_s": rate, "steps_per_s": rate * per_grasp,
+                     "agree": sum(a == b for a, b in zip(verdicts, ref, strict=False)),
+                     "compared": min(len(verdicts), len(ref))})
 
     loop = grasps[:args.loop_n]
     t0 = time.perf_counter()
@@ -112,7 +120,11 @@ def main() -> None:
           f"steps per grasp on average")
     print("| path | grasps | passed | grasps/s | steps/s | verdicts = python loop |")
     print("| --- | --- | --- | --- | --- | --- |")
-    print("\n".join(rows))
+    print("\n".join(f"| {r['path']} | {r['grasps']} | {r['passed']} | {r['grasps_per_s']:.1f} | "
+                    f"{r['steps_per_s']:,.0f} | {r['agree']}/{r['compared']} |" for r in rows))
+    path = write_record("validate_speed", rows, summary={"steps_per_grasp": per_grasp},
+                        config=vars(args), hand=hand.name, objects=[args.object])
+    print(f"record: {path}")
 
 
 if __name__ == "__main__":

@@ -7,7 +7,8 @@ and rejected rows alike) is validated once as stored and ``--copies`` times with
 (clipped to the joint limits; 0.1 mm and 0.1° by default, far below any placement or
 tracking error). Printed per object: the grasps, passes as stored, the nudged copies' pass
 rate, the grasps whose verdicts all agree (always pass / always fail) or not (mixed), and the
-share of nudged verdicts that differ from the grasp's own.
+share of nudged verdicts that differ from the grasp's own; the rows go to a record as well
+(:func:`benchmarks.record.write_record`, ``benchmarks/measured/verdict_stability/``).
 
     .venv/bin/python benchmarks/bench_verdict_stability.py DATASET.h5 [...] [--protocol dgb]
         [--copies 3] [--pos-mm 0.1] [--joint-deg 0.1] [--seed 1]
@@ -16,12 +17,16 @@ share of nudged verdicts that differ from the grasp's own.
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 from augment import dataset
 from augment.grasp_table import grasps_of, with_rejected
+from benchmarks.record import write_record
 from sim.grasp import Grasp
 from sim.hand.model import Hand
 from sim.validate.batch import validate_many
@@ -57,6 +62,7 @@ def main() -> None:
     print("| object | grasps | pass as stored | nudged pass rate | always pass | always fail | mixed "
           "| nudged verdicts that differ |")
     print("|---|---|---|---|---|---|---|---|")
+    rows, hands = [], set()
     for path in args.datasets:
         for name, table in dataset.load(path).items():
             hand = Hand.load(table.attrs["hand"])
@@ -69,6 +75,18 @@ def main() -> None:
             print(f"| {name} | {len(grasps)} | {own.sum()} | {moved.mean():.1%} | {np.sum(share == 1)} "
                   f"| {np.sum(share == 0)} | {np.sum((share > 0) & (share < 1))} "
                   f"| {np.mean(moved != own[:, None]):.1%} |")
+            rows.append({"dataset": path, "object": name, "hand": hand.name,
+                         "grasps": len(grasps), "pass_as_stored": int(own.sum()),
+                         "nudged_pass_rate": float(moved.mean()),
+                         "always_pass": int(np.sum(share == 1)),
+                         "always_fail": int(np.sum(share == 0)),
+                         "mixed": int(np.sum((share > 0) & (share < 1))),
+                         "nudged_differ": float(np.mean(moved != own[:, None]))})
+            hands.add(hand.name)
+    record = write_record("verdict_stability", rows, config=vars(args),
+                          hand=next(iter(hands)) if len(hands) == 1 else None,
+                          objects=sorted({r["object"] for r in rows}))
+    print(f"record: {record}")
 
 
 if __name__ == "__main__":

@@ -12,7 +12,9 @@ advanced world's state back with ``mj_forward`` of it, the host starting grasps
 (``Validator.start``: placement, penetration, pregrasp and squeeze targets), and the rest (the
 programs between calls). ``--device cpu`` runs Warp's CPU backend (slow; for agreement on a
 machine without a GPU). Needs ``pip install mujoco-warp``; results of an H200 are in
-``benchmarks/measured/warp_h200/``.
+``benchmarks/measured/warp_h200/`` (written before benchmark records: no commit or machine). Every
+run writes a record (:func:`benchmarks.record.write_record`, ``benchmarks/measured/warp_agreement/``:
+the rows below and the C reference); ``--json`` writes the old file as well.
 
     python benchmarks/bench_warp_agreement.py [--n 64] [--device cuda] [--protocol lift-drop]
         [--workers 1] [--worlds 4096,8192] [--json results.json]
@@ -22,11 +24,15 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from collections import Counter
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 from augment import dataset
+from benchmarks.record import write_record
 from sim.grasp import Grasp
 from sim.hand.config import default_hand_name
 from sim.hand.model import Hand
@@ -141,7 +147,12 @@ def main() -> None:
                                              "c_passed": sum(r.passed for r in ref),
                                              "warp_passed": sum(r.passed for r in warp),
                                              "disagreements": dict(pairs), "rows": rows}, indent=1))
-
+    summary = {"c_validations_per_s": c_rate, "c_workers": args.workers, "agree": same,
+               "agree_reason": same_reason, "n": n, "c_passed": sum(r.passed for r in ref),
+               "warp_passed": sum(r.passed for r in warp), "disagreements": dict(pairs)}
+    path = write_record("warp_agreement", rows, summary=summary, config=vars(args), hand=hand,
+                        objects=[args.object])
+    print(f"record: {path}")
 
 
 if __name__ == "__main__":

@@ -9,7 +9,8 @@ part (arrival → ``put`` returned).
 
     .venv/bin/python benchmarks/bench_web_ingest.py [--no-bridge] [--no-view]
 
-Needs Debian's Chromium and iwer (``make browser``).
+Needs Debian's Chromium and iwer (``make browser``). The figures go to a record as well
+(:func:`benchmarks.record.write_record`, ``benchmarks/measured/web_ingest/``).
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from benchmarks.record import write_record
 from sim.paths import SHARED_ASSETS
 from tests.browser import CHROMIUM, CHROMIUM_ARGS, chromium_missing, iwer_build_dir, iwer_missing
 
@@ -114,10 +116,17 @@ def main() -> None:
     print(f"rate from the emulated session: {fps:.1f} frames/s")
     print(f"WebSocket arrival → zenoh subscriber: median {np.median(lat_ms):.2f} ms, "
           f"p99 {np.percentile(lat_ms, 99):.2f} ms, max {lat_ms.max():.2f} ms")
+    row = {"page_sent": sent, "zenoh_received": len(a), "views_shown": views, "frames_per_s": fps,
+           "median_ms": float(np.median(lat_ms)), "p99_ms": float(np.percentile(lat_ms, 99)),
+           "max_ms": float(lat_ms.max())}
     if "ingest_latency_ms" in istats:
         il = istats["ingest_latency_ms"]
         print(f"  of which in the ingest (parse, convert, encode, put): median "
               f"{il['median']:.2f} ms, p99 {il['p99']:.2f} ms")
+        row.update(ingest_median_ms=il["median"], ingest_p99_ms=il["p99"])
+    path = write_record("web_ingest", [row], summary=row,
+                        config={**vars(args), "capture_dir": str(CAPTURE_DIR)})
+    print(f"record: {path}")
 
 
 if __name__ == "__main__":

@@ -8,7 +8,9 @@ cold (in-memory fingertip caches cleared, empty disk cache in a temporary ``DEXA
 and cached (the ``.npz`` read back from the disk cache). Targets (issue): < 2 s cold, < 50 ms
 cached. The demo is synthetic: each independent joint at the middle of its manual range,
 contacts at the fingertip surface point nearest the pulp site. Times are the best of
-``--repeats`` runs; the hand model load is reported separately.
+``--repeats`` runs; the hand model load is reported separately. One row per hand and source
+(manual ranges, demo) goes to a record as well (:func:`benchmarks.record.write_record`,
+``benchmarks/measured/workspace/``).
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ from augment.autows.cloud import WorkspaceCloud  # noqa: E402
 from augment.autows.fingertip import clear_caches, hand_fingertip_faces  # noqa: E402
 from augment.autows.params import load_autows_params  # noqa: E402
 from augment.autows.seed import DemoSeed  # noqa: E402
+from benchmarks.record import write_record  # noqa: E402
 from sim.hand.config import hand_names  # noqa: E402
 from sim.hand.model import Hand  # noqa: E402
 
@@ -83,6 +86,7 @@ def main() -> int:
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
     print(f"AutoWS benchmark, one core, best of {args.repeats}")
+    rows = []
     for name in args.hands:
         t0 = time.perf_counter()
         hand = Hand.load(name)
@@ -95,11 +99,22 @@ def main() -> int:
                   f"{cloud.nbytes / 1e6:.2f} MB in memory, cache file {size / 1e6:.2f} MB")
             print(f"   {'finger':<12}{'points':>8}{'faces':>7}{'combos':>8}{'skel pts':>10}"
                   f"{'MB':>8}")
+            fingers = []
             for f in cloud.fingers:
                 combos = int(np.prod([len(v) for v in
                                       cloud.provenance["grids_rad"][f.name].values()]))
                 print(f"   {f.name:<12}{f.n_points:>8}{f.n_faces:>7}{combos:>8}"
                       f"{f.skeleton.shape[1]:>10}{f.nbytes / 1e6:>8.2f}")
+                fingers.append({"finger": f.name, "points": f.n_points, "faces": f.n_faces,
+                                "combos": combos, "skeleton_points": f.skeleton.shape[1],
+                                "mb": f.nbytes / 1e6})
+            rows.append({"hand": name, "source": label, "hand_load_ms": t_load * 1e3,
+                         "cold_ms": cold * 1e3, "cached_ms": cached * 1e3,
+                         "memory_mb": cloud.nbytes / 1e6, "cache_file_mb": size / 1e6,
+                         "fingers": fingers})
+    path = write_record("workspace", rows, config=vars(args),
+                        hand=args.hands[0] if len(args.hands) == 1 else None)
+    print(f"record: {path}")
     return 0
 
 

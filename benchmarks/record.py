@@ -13,7 +13,10 @@ benchmark writes its result through this one helper so that records have one sha
 Records are written atomically (:func:`sim.io.write_bytes_atomic`): a run killed while writing
 leaves the previous records intact and no half file. Each run gets its own file,
 ``benchmarks/measured/<benchmark>/<UTC time>-<commit[:10]>.json``, so records accumulate and
-nothing is overwritten; ``--record-dir`` style overrides pass ``out_dir``.
+nothing is overwritten; ``--record-dir`` style overrides pass ``out_dir``, and the environment
+variable ``DEXAUG_RECORD_DIR`` (:data:`RECORD_DIR_ENV`) moves every record of a process tree to
+``$DEXAUG_RECORD_DIR/<benchmark>/``: ``benchmarks/headline.py run --quick`` sends its CI-size runs
+there so that they never become the newest record of a headline figure.
 """
 
 from __future__ import annotations
@@ -34,10 +37,12 @@ from sim.io import write_bytes_atomic
 from sim.provenance import asset_hashes
 from sim.versions import PACKAGES, code_version, package_versions
 
-__all__ = ["MEASURED_DIR", "machine", "write_record"]
+__all__ = ["MEASURED_DIR", "RECORD_DIR_ENV", "machine", "write_record"]
 
 #: where records live: one folder per benchmark
 MEASURED_DIR = Path(__file__).resolve().parent / "measured"
+#: environment variable: a folder that replaces :data:`MEASURED_DIR` (scratch runs)
+RECORD_DIR_ENV = "DEXAUG_RECORD_DIR"
 #: packages beyond :data:`sim.versions.PACKAGES` that shape benchmark results
 _EXTRA_PACKAGES = ("foxglove-sdk", "trimesh", "highspy", "mujoco-warp", "ray", "warp-lang")
 
@@ -112,8 +117,9 @@ def write_record(benchmark: str, rows: Sequence[Mapping[str, Any]], *,
     ``rows`` and ``summary`` (the figures a reader quotes), the ``config`` it ran under, and the
     SHA-256 of ``hand``'s files and each of ``objects``'; returns the record's path.
 
-    ``argv`` defaults to this process's command line. NaN and infinities are written as null
-    (JSON has none)."""
+    ``argv`` defaults to this process's command line; the folder is ``out_dir``, else
+    ``$DEXAUG_RECORD_DIR/<benchmark>``, else ``benchmarks/measured/<benchmark>``. NaN and
+    infinities are written as null (JSON has none)."""
     if not benchmark or not all(c.isalnum() or c in "_-" for c in benchmark):
         raise ValueError(f"benchmark name {benchmark!r}: expected letters, digits, '_' or '-'")
     code = code_version()
@@ -133,7 +139,8 @@ def write_record(benchmark: str, rows: Sequence[Mapping[str, Any]], *,
         "rows": _plain([dict(r) for r in rows]),
         "summary": _plain(dict(summary or {})),
     }
-    folder = Path(out_dir) if out_dir is not None else MEASURED_DIR / benchmark
+    root = Path(os.environ[RECORD_DIR_ENV]) if os.environ.get(RECORD_DIR_ENV) else MEASURED_DIR
+    folder = Path(out_dir) if out_dir is not None else root / benchmark
     stem = now.strftime("%Y%m%dT%H%M%SZ") + "-" + str(code.get("commit", code.get("version")))[:10]
     path = folder / f"{stem}.json"
     k = 1

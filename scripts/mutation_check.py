@@ -1,10 +1,11 @@
 #!/usr/bin/env python3
-"""Does a test fail when a guard is gone? Each security guard and fault handler the README
-claims ("Security and faults": loopback by default, the per-start token, the Host / Origin /
-CSRF checks of the dashboard and the headset page, a remote caller never choosing a file path,
-the recorder's disk-full / kill / truncation handling, the bridge's wrist-jump limit and
-instability restore, busy ports, Ctrl-C ending FSG's workers) is listed below with the exact
-source it lives in, a replacement that disables it, and the test meant to catch that.
+"""Does a test fail when a guard is gone? Each security guard and fault handler the guides claim
+(docs/quest-capture.md, "Security and faults": loopback by default, the per-start token, the
+Host / Origin / CSRF checks of the dashboard and the headset page, a remote caller never
+choosing a file path, the recorder's disk-full / kill / truncation handling, the bridge's
+wrist-jump limit and instability restore, busy ports, Ctrl-C ending FSG's workers) is listed
+below with the exact source it lives in, a replacement that disables it, and the test meant to
+catch that.
 
 For each entry the repository is copied to a temporary folder (without .venv and .git; a
 ``shared`` link beside it, as the tests find their assets in ../shared), the snippet replaced
@@ -40,7 +41,7 @@ SKIP = {".venv", ".git", "__pycache__", ".pytest_cache", ".ruff_cache", "artifac
 
 @dataclass(frozen=True)
 class Mutation:
-    name: str      # the guard, in the README's words
+    name: str      # the guard, in docs/quest-capture.md's words
     file: str      # relative to the repository root
     snippet: str   # exact source, found exactly once
     replacement: str

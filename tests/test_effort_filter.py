@@ -3,8 +3,8 @@ max_actuator_effort``), and stops at once on an object no grasp of the hand can 
 
 Above an effort of 1 the hand's servos cannot hold the loads at the grasp's contacts however
 they squeeze (:mod:`sim.validate.effort`); none of 117 such grasps over seven objects passed
-``dgb`` (``benchmarks/bench_grip_predictor.py``). Measured with the filter on (README "Grasps
-that hold"): the authors' bowl demo 27 → 39 of 200 ``dgb`` passes at the same throughput.
+``dgb`` (``benchmarks/bench_grip_predictor.py``). Measured with the filter on (docs/validation.md,
+"Grasps that hold"): the authors' bowl demo 27 → 39 of 200 ``dgb`` passes at the same throughput.
 The default limit is 0.25, below 1: grasps above it seldom hold in simulation (calibrated on
 objects outside every acceptance set, ``bench_grip_predictor.py --bins``).
 """

@@ -4,7 +4,7 @@ keeps the fingers out of each other.
 One Shadow servo holds only J1 + J2 of a finger; a pressed fingertip drives the split to J2's
 extension stop, and a closing that does that on the object drags the free object along
 (:mod:`sim.validate.free_modes`). A pregrasp backed off along each contact normal can put one
-finger into its neighbour, which the benchmark refuses. Measured on five demos in the README
+finger into its neighbour, which the benchmark refuses. Measured on five demos in docs/validation.md
 ("Grasps that hold").
 """
 

@@ -7,7 +7,7 @@ for (043 demo: failing grasps pressed 3.1 N in all, passing ones 9.3 N). Raising
 every grasp instead saturated the servos of heavy ones (sugar box at 3: failing grasps with a
 servo at its limit 3 → 32 of 55). The grip is now scaled up to ``max_grip_safety`` as far as
 every finger servo's squeeze force stays within ``servo_headroom`` of its force limit, both
-calibrated on nine objects outside every acceptance set (README "Grasps that hold").
+calibrated on nine objects outside every acceptance set (docs/validation.md, "Grasps that hold").
 """
 
 from __future__ import annotations

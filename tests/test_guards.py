@@ -1,6 +1,7 @@
-"""Guards the README claims that no test pinned before ``scripts/mutation_check.py`` looked for
-the test of each: everything listens on loopback unless asked — the dashboard's default, the
-`ui`, `stream-ingest` and `bridge --web` command lines, the zenoh peers.
+"""Guards the guides claim (docs/quest-capture.md, "Security and faults") that no test pinned
+before ``scripts/mutation_check.py`` looked for the test of each: everything listens on loopback
+unless asked — the dashboard's default, the `ui`, `stream-ingest` and `bridge --web` command
+lines, the zenoh peers.
 
 Checked on the listening sockets themselves (``/proc/net/tcp``, ``/proc/net/tcp6``), not on a
 config field, so a default that is right on paper but not on the wire fails too.

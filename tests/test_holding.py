@@ -159,7 +159,8 @@ def test_actuator_effort_is_linear_in_the_load_and_bounded_by_the_limits(shadow)
 def test_fsg_ranks_by_effort_for_the_benchmark_and_by_epsilon_for_lift_drop(shadow) -> None:
     """``[fsg] dgb_hold_oversample`` (2 by default) ranks the grasps made for ``--validate dgb``
     by the effort of the benchmark's pushes; lift-drop keeps ``hold_oversample`` (1: the
-    paper's ε order). Measured: README "FSG ranks by the benchmark's loads"."""
+    paper's ε order). Measured: docs/validation.md, "FSG ranks by the benchmark's
+    loads"."""
     from augment.autows.build import build_workspace
     from augment.object_cloud import object_cloud
     from dexaug.pipeline.run import generate_grasps

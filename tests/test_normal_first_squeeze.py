@@ -6,7 +6,7 @@ along the surface wherever the finger's arc is not normal to it; a finger that r
 object still sliding drags it with friction, and on the benchmark's free 0.1 kg object the
 squeeze alone turned a 16 mm cube or a screwdriver handle past its limits. The squeeze's
 geometric part is now solved normal first, with the surface motion driven to zero in that
-task's null space. Measured on five demos (README "Grasps that hold").
+task's null space. Measured on five demos (docs/validation.md, "Grasps that hold").
 """
 
 from __future__ import annotations

@@ -396,7 +396,7 @@ def test_list_objects_reports_broken_objects(caplog: pytest.LogCaptureFixture) -
     assert statuses["004_sugar_box"].mass_kg == pytest.approx(0.514)
     assert statuses["004_sugar_box"].warnings == []
     assert statuses["012_strawberry"].ok and len(statuses["012_strawberry"].warnings) == 1
-    # the README's list of loaders that fail is complete: everything else loads
+    # docs/assets.md's list of loaders that fail is complete: everything else loads
     broken = {n for n, s in statuses.items() if not s.ok}
     assert broken == set(BROKEN)
     assert all(statuses[n].ok and statuses[n].mass_kg for n in REPAIRED)

@@ -1,9 +1,9 @@
 """Power grasps (augment.power): the palm on the object and every finger closed onto it.
 
 Real MuJoCo throughout: grasps are made by closing the Shadow Hand on the YCB bleach bottle
-(1.13 kg; 2 % of fingertip grasps hold it in lift-drop, see the README), checked against the
-simulator's own contacts and validated with lift-drop; the actuator-effort filter, the config
-checks and the CLI's refusals are checked to fail where they should.
+(1.13 kg; 2 % of fingertip grasps hold it in lift-drop, see docs/validation.md, "Power grasps"),
+checked against the simulator's own contacts and validated with lift-drop; the actuator-effort
+filter, the config checks and the CLI's refusals are checked to fail where they should.
 """
 
 from __future__ import annotations

@@ -6,8 +6,7 @@ six 1 N pushes on a 0.1 kg object, with the benchmark's friction (μ 0.6 / 0.02)
 (kp 5 on every finger servo), and the stages are simulated in the benchmark's scene. Sized for
 the real weight instead, a 5 g dice got the 0.25 N floor per contact against 1 N pushes.
 ``six-dir`` pushes 10·m N along ±x, ±y, ±z: its squeeze is sized for those six, not for the
-weight along −z. Measured on the augmentations of the demonstrations (README "Grasp
-validation").
+weight along −z. Measured on the augmentations of the demonstrations (docs/validation.md).
 """
 
 from __future__ import annotations

@@ -5,8 +5,8 @@ the same squeeze: the one whose closing (object free, no push) moves the object 
 where that closing has already lost the object, gentler squeezes (``[dgb]
 rehearsal_fallback_squeeze_scales``) too; then the squeeze corrected for the drift its closing
 leaves (``rehearsal_drift_corrections``); a closing already calm (``rehearsal_calm_score``) ends
-the rehearsal. Measured on five demos in the README ("Rehearsed closing", "Drift-corrected
-squeeze").
+the rehearsal. Measured on five demos in docs/validation.md ("Rehearsed closing",
+"Drift-corrected squeeze").
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ grasp → squeeze as they were, the fingers already touching pressed the free ob
 others still travelled, and ``dgb`` counts that motion as drift. Under the ``dexaug``
 convention the benchmark's grasp stage is now the grasp with those contacts moved onto the
 surface, with the pregrasp and squeeze derived there; lift-drop has no middle stage and is
-unchanged. Measured on five demos (README "Grasps that hold").
+unchanged. Measured on five demos (docs/validation.md, "Grasps that hold").
 """
 
 from __future__ import annotations

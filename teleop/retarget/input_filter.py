@@ -8,7 +8,7 @@ the retargeter that noise becomes pad targets jumping a few millimetres every fr
 position-servoed robot finger resting on an object then touches and leaves it from one physics
 step to the next: on three natural-speed grasps the set of fingers in contact changed at 28–30
 of 36 states after the grasp moment with the noise and at 0–13 without it
-(``benchmarks/bench_teleop_loop.py``, README "Grasping at human speed"). A fixed low-pass
+(``benchmarks/bench_teleop_loop.py``, docs/teleoperation.md, "Grasping at human speed"). A fixed low-pass
 filter strong enough to remove that jitter lags a 0.3 s human closure; the One-Euro filter's
 cutoff rises with the signal's speed (fc = min_cutoff + beta · |ẋ|), so a still hand is smoothed
 hard and a moving one barely delayed.
