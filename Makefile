@@ -13,7 +13,7 @@ DEMO_STAMP := $(VENV)/.installed-demo
 TEST_STAMP := $(VENV)/.installed-test
 export MUJOCO_GL ?= egl
 
-.PHONY: demo test test-load lint bench clean gl browser
+.PHONY: demo test test-load lint bench bench-headline bench-headline-quick clean gl browser
 
 # The virtual environment itself (kept if it is already there), for both installs below.
 define make-venv
@@ -74,6 +74,19 @@ bench: $(DEMO_STAMP) gl
 	$(BIN)/python benchmarks/bench_validate.py
 	$(BIN)/python benchmarks/bench_augment.py
 	$(BIN)/dexaug bench paper
+
+# The benchmarks behind the README's Status figures and the docs' recorded figures
+# (benchmarks/headline.toml), each writing its record under benchmarks/measured/, then the
+# figures rewritten from the newest records (~15 min on 2 cores). Commit the records with the
+# rewritten README/docs: tests/test_headline_figures.py compares the two.
+bench-headline: $(DEMO_STAMP) gl
+	$(BIN)/python benchmarks/headline.py run
+	$(BIN)/python benchmarks/headline.py render
+
+# The same benchmarks at CI size (~3 min), records in a scratch folder; checks that every
+# figure still computes from what they write. Changes no file.
+bench-headline-quick: $(DEMO_STAMP) gl
+	$(BIN)/python benchmarks/headline.py run --quick
 
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache
