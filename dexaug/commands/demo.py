@@ -209,7 +209,7 @@ def _import_args(p: argparse.ArgumentParser) -> None:
                    "re-centred meshes (one object at a time: with --object); default: identity")
     p.add_argument("--hand", default=None, help="hand config (configs/hands/<hand>/); default: "
                    "the one whose palm body and finger joints the file names (srh.txt, which "
-                   "names none: configs/hands/default.toml's)")
+                   "names none: the hand whose folder declares [formats.srh_txt])")
     p.add_argument("--tolerance-mm", type=float, default=DEFAULT_TOLERANCE_M * 1e3,
                    help="a fingertip whose signed distance to the object is at most this "
                    "touches it; default %(default)g mm")
