@@ -25,6 +25,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import os
 import signal
 import sys
 import threading
@@ -154,6 +155,15 @@ def _exit_on_sigterm() -> None:
         signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
 
 
+def _another_interrupt_exits_now(status: int) -> None:
+    """While an interrupted command stops its workers (about a second), a further Ctrl-C (an
+    impatient user; ``timeout -s INT``, which may deliver it twice) ends the process at once
+    with ``status``. Raised inside the handler it printed a traceback and skipped the exit
+    status. The workers have been sent SIGTERM or end with their owner."""
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, lambda signum, frame: os._exit(status))
+
+
 def log_level(args: argparse.Namespace) -> int:
     """The level of dexaug's own log: ``--log-level`` when given, else DEBUG with ``-v``,
     WARNING with ``-q``, INFO by default."""
@@ -203,6 +213,7 @@ def main(argv: list[str] | None = None) -> int:
         print_error(str(exc))
         return 1
     except KeyboardInterrupt:
+        _another_interrupt_exits_now(130)
         stop_workers()        # their running tasks would hold the exit until their budget ends
         return 130
     except SystemExit:        # SIGTERM (see _exit_on_sigterm)

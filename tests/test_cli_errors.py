@@ -267,15 +267,19 @@ def _sampling_workers(pgid: int) -> list[int]:
 
 @needs_menagerie
 @needs_ycb
-@pytest.mark.parametrize(("signum", "to_group", "status"), [
-    (signal.SIGINT, False, 130), (signal.SIGINT, True, 130), (signal.SIGTERM, False, 143)],
-    ids=["sigint-main-process", "sigint-process-group", "sigterm-main-process"])
+@pytest.mark.parametrize(("signum", "to_group", "status", "again"), [
+    (signal.SIGINT, False, 130, False), (signal.SIGINT, True, 130, False),
+    (signal.SIGTERM, False, 143, False), (signal.SIGINT, True, 130, True)],
+    ids=["sigint-main-process", "sigint-process-group", "sigterm-main-process",
+         "sigint-again-while-stopping"])
 def test_interrupting_fsg_exits_within_seconds(tmp_path: Path, signum: int, to_group: bool,
-                                               status: int) -> None:
+                                               status: int, again: bool) -> None:
     """SIGINT or SIGTERM while FSG's workers sample (a budget of minutes): the command ends
     within seconds (status 130 or 143), whether the signal reaches the main process only
     (`kill`, a service manager, a parent process) or the whole process group (Ctrl-C in a
-    terminal), prints no traceback and leaves no worker behind."""
+    terminal), prints no traceback and leaves no worker behind. ``again``: Ctrl-C pressed over
+    and over (an impatient user; ``timeout -s INT`` delivering it twice) until the command has
+    ended — one landing while the workers are being stopped used to print a traceback."""
     session = REPO / "recordings" / "demo_062_dice.mcap"
     proc = subprocess.Popen(
         [sys.executable, "-m", "dexaug", "augment", str(session), "--n", "100000", "--budget",
@@ -296,6 +300,9 @@ def test_interrupting_fsg_exits_within_seconds(tmp_path: Path, signum: int, to_g
             os.killpg(proc.pid, signum)
         else:
             proc.send_signal(signum)
+        while again and proc.poll() is None and time.monotonic() - sent < SOON_S:
+            os.killpg(proc.pid, signum)
+            time.sleep(0.01)
         # within seconds on a quiet machine; the bound is SOON_S, a fifth of the 300 s budget
         # its workers would otherwise sample for, so it still tells the two apart under load
         assert proc.wait(SOON_S) == status, time.monotonic() - sent
