@@ -74,6 +74,9 @@ class SixDirParams:
     push_time_s: float
     max_displacement_m: float
     max_rotation_rad: float
+    #: stop after the first direction the object slips in (the verdict is then fixed; the
+    #: worst drift over all six is not measured); False pushes all six
+    early_exit: bool = True
 
 
 @dataclass(frozen=True)
@@ -109,6 +112,10 @@ class DgbParams:
     rehearsal_drift_corrections: int
     rehearsal_rest_s: float
     rehearsal_calm_score: float
+    #: skip the rehearsal's simulation whose outcome is already known (sim.validate.rehearsal:
+    #: a shared pregrasp → grasp stage, corrections of a pregrasp that penetrates); False
+    #: simulates every rehearsal in full. The stages chosen, and so every result, are the same.
+    early_exit: bool = True
 
 
 def _pair(sec: Section, key: str) -> tuple[float, float]:
@@ -141,7 +148,7 @@ def _load_dgb(sec: Section) -> DgbParams:
                         "max_displacement_m", "max_rotation_deg", "squeeze_convention",
                         "settle_free_modes", "rehearse_closing", "rehearsal_pregrasp_shares",
                         "rehearsal_fallback_squeeze_scales", "rehearsal_drift_corrections",
-                        "rehearsal_rest_s", "rehearsal_calm_score"})
+                        "rehearsal_rest_s", "rehearsal_calm_score", "early_exit"})
     shares = tuple(sec.floats("rehearsal_pregrasp_shares"))
     if not shares or any(not 0.0 <= s <= 1.0 for s in shares):
         raise sec.error("rehearsal_pregrasp_shares",
@@ -179,7 +186,8 @@ def _load_dgb(sec: Section) -> DgbParams:
         rehearsal_fallback_squeeze_scales=scales,
         rehearsal_drift_corrections=sec.int("rehearsal_drift_corrections", min=0),
         rehearsal_rest_s=sec.float("rehearsal_rest_s", min=0.0, max=10.0),
-        rehearsal_calm_score=sec.float("rehearsal_calm_score", min=0.0, max=1.0))
+        rehearsal_calm_score=sec.float("rehearsal_calm_score", min=0.0, max=1.0),
+        early_exit=sec.bool("early_exit", True))
 
 
 def _choice(sec: Section, key: str, allowed: tuple[str, ...]) -> str:
@@ -240,13 +248,14 @@ class ValidateConfig:
             drop_min_fall_m=ld.float("drop_min_fall_m", **pos))
         sd = root.section("six_dir")
         sd.reject_unknown({"timestep_s", "impratio", "noslip_iterations", "force_per_kg", "push_time_s",
-                           "max_displacement_m", "max_rotation_deg"})
+                           "max_displacement_m", "max_rotation_deg", "early_exit"})
         six = SixDirParams(
             timestep_s=sd.float("timestep_s", min=1e-4, max=0.02),
             impratio=sd.float("impratio", min=1.0),
             noslip_iterations=sd.int("noslip_iterations", min=0),
             force_per_kg=sd.float("force_per_kg", **pos), push_time_s=sd.float("push_time_s", **pos),
             max_displacement_m=sd.float("max_displacement_m", **pos),
-            max_rotation_rad=np.deg2rad(sd.float("max_rotation_deg", min=0.0, max=180.0)))
+            max_rotation_rad=np.deg2rad(sd.float("max_rotation_deg", min=0.0, max=180.0)),
+            early_exit=sd.bool("early_exit", True))
         return cls(common, lift, six, _load_dgb(root.section("dgb")))
 

@@ -81,13 +81,37 @@ def close(scene: Scene, p: DgbParams, stages: GraspStages) -> None:
 #: how many closed states each scene keeps: the rehearsal closes up to six candidates before the
 #: benchmark runs the one it kept (sim.validate.rehearsal)
 CLOSINGS_KEPT = 8
-_closings: weakref.WeakKeyDictionary[Scene, OrderedDict[bytes, mujoco.MjData]] = weakref.WeakKeyDictionary()
+_Kept = weakref.WeakKeyDictionary[Scene, OrderedDict[bytes, mujoco.MjData]]
+_closings: _Kept = weakref.WeakKeyDictionary()
+#: the states after the pregrasp → grasp stage alone (``[dgb] early_exit``): the rehearsal's
+#: fallback squeezes and drift corrections keep the pregrasp and grasp and change the squeeze
+_grasp_stages: _Kept = weakref.WeakKeyDictionary()
 
 
-def _closing_key(p: DgbParams, palm_world: tuple[np.ndarray, np.ndarray], stages: GraspStages) -> bytes:
-    arrays = (*palm_world, stages.pregrasp, stages.grasp, stages.squeeze)
+def _closing_key(p: DgbParams, palm_world: tuple[np.ndarray, np.ndarray], stages: GraspStages,
+                 *, first_stage_only: bool = False) -> bytes:
+    arrays = (*palm_world, stages.pregrasp, stages.grasp,
+              *(() if first_stage_only else (stages.squeeze,)))
     return b"|".join(np.asarray(a, np.float64).tobytes() for a in arrays) + \
-        f"|{p.stage_increments}|{p.steps_per_increment}".encode()
+        f"|{p.stage_increments}|{p.steps_per_increment}|{first_stage_only}".encode()
+
+
+def _restore_or_keep(kept_by_scene: _Kept, scene: Scene, key: bytes,
+                     simulate: Callable[[], None]) -> None:
+    """Copy the ``MjData`` kept under ``key`` into ``scene``, or ``simulate()`` from the state it
+    is in and keep the result (the last :data:`CLOSINGS_KEPT` per scene). Only for a simulation
+    that ``key`` determines from a reset: MuJoCo is deterministic and the whole ``MjData`` is
+    kept (state, contacts, solver warm start), so the copy is what simulating again gives."""
+    m, d = scene.model, scene.data
+    kept = kept_by_scene.setdefault(scene, OrderedDict())
+    if key in kept:
+        kept.move_to_end(key)
+        mujoco.mj_copyData(d, m, kept[key])
+        return
+    simulate()
+    store = kept.popitem(last=False)[1] if len(kept) >= CLOSINGS_KEPT else mujoco.MjData(m)
+    mujoco.mj_copyData(store, m, d)
+    kept[key] = store
 
 
 def closed(scene: Scene, p: DgbParams, palm_world: tuple[np.ndarray, np.ndarray],
@@ -97,19 +121,20 @@ def closed(scene: Scene, p: DgbParams, palm_world: tuple[np.ndarray, np.ndarray]
     stages on this scene it is simulated and the whole ``MjData`` kept (the last
     :data:`CLOSINGS_KEPT`); after that the kept data is copied back, state, contacts and solver
     warm start alike, which is what simulating it again gives (deterministic; the scene's model
-    is never changed after it is built)."""
-    m, d = scene.model, scene.data
+    is never changed after it is built). With ``p.early_exit`` the state after the first stage
+    (pregrasp → grasp) is kept the same way, so stages that differ only in their squeeze
+    simulate only the second."""
     scene.reset_with_grasp(*palm_world, stages.pregrasp)
-    kept = _closings.setdefault(scene, OrderedDict())
-    key = _closing_key(p, palm_world, stages)
-    if key in kept:
-        kept.move_to_end(key)
-        mujoco.mj_copyData(d, m, kept[key])
-        return
-    close(scene, p, stages)
-    store = kept.popitem(last=False)[1] if len(kept) >= CLOSINGS_KEPT else mujoco.MjData(m)
-    mujoco.mj_copyData(store, m, d)
-    kept[key] = store
+
+    def simulate() -> None:
+        if not p.early_exit:
+            close(scene, p, stages)
+            return
+        _restore_or_keep(_grasp_stages, scene, _closing_key(p, palm_world, stages, first_stage_only=True),
+                         lambda: _stage(scene, p, stages.pregrasp, stages.grasp))
+        _stage(scene, p, stages.grasp, stages.squeeze)
+
+    _restore_or_keep(_closings, scene, _closing_key(p, palm_world, stages), simulate)
 
 
 def closing_drift(scene: Scene, p: DgbParams, palm_world: tuple[np.ndarray, np.ndarray],

@@ -27,6 +27,14 @@ A closing that already scores ``[dgb] rehearsal_calm_score`` or less (a tenth of
 ends the rehearsal where it stands, later candidates and corrections unrehearsed: on five demos
 the same verdicts, in less time (README "A calm closing ends the rehearsal").
 
+``[dgb] early_exit`` skips only simulation whose outcome is known, so the stages chosen are
+the same bit for bit: the pregrasp → grasp stage that a fallback squeeze or a correction shares
+with the closing it came from is copied, not simulated again (:func:`sim.validate.dgb.closed`),
+and a chosen pregrasp the benchmark refuses for penetration is not corrected (a correction keeps
+the pregrasp, so it scores infinity too and can never be kept). Every other decision compares a
+closing's drift *at the end of its rest*, which is not monotone in time (a closing that has
+pushed the object past the limits can settle it back), so no candidate's closing is cut short.
+
 This is a generator rehearsing its own execution, as a grasp pipeline does before it commits
 to control targets; the pushes, which decide the verdict, are not rehearsed. Units: metres,
 radians; scores are dimensionless (drift over the benchmark's limit).
@@ -162,6 +170,10 @@ def rehearsed_stages(scene: Scene, p: DgbParams, palm_world: tuple[np.ndarray, n
         if gentle_scores[calmest] < score:
             chosen, score = gentler[calmest], float(gentle_scores[calmest])
     current = chosen
+    # a pregrasp the benchmark refuses (score infinite) stays refused: corrections keep it, so
+    # none can score lower, and each would still simulate a closing (early exit skips them)
+    if p.early_exit and score == float("inf"):
+        corrections = 0
     # each from the last: a correction can pass through a worse closing
     for _ in range(corrections if score > calm_score else 0):
         current = drift_corrected(scene, p, palm_world, current)

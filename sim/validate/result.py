@@ -55,6 +55,13 @@ class ValidationResult:
     squeeze: np.ndarray | None = None
     #: dgb only: the grasp stage closed through between them (sim.validate.stages)
     touch: np.ndarray | None = None
+    #: where an early exit stopped the simulation once the verdict could no longer change (the
+    #: protocol's ``early_exit``), e.g. six-dir's "after push +x: slipped"; None:
+    #: simulated to the protocol's end. Verdict and failure are those of the full run; what the
+    #: rest would have measured (the final or worst drift: ``displacement_m``, ``rotation_rad``)
+    #: is NaN, the phase that stopped keeps the drift measured where it stopped, and the phases
+    #: after it are absent.
+    stopped_early: str | None = None
     contact_pos_obj: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     contact_normal_obj: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 

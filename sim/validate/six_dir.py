@@ -5,6 +5,11 @@ directions, restored and a force of ``force_per_kg`` times the object's mass is 
 centre of mass for ``push_time_s``. The grasp passes when the object stays within the
 displacement and rotation limits in the palm under every push. Units: newtons per kilogram,
 seconds, metres, radians.
+
+Early exit (``[six_dir] early_exit``): the verdict is the conjunction of the six directions' and
+the failure is ``slipped`` whichever direction fails, so once one direction has failed neither
+can change; the pushes after it are not simulated. Only the worst drift over all six is lost:
+``displacement_m``/``rotation_rad`` are then NaN and ``stopped_early`` names the direction.
 """
 
 from __future__ import annotations
@@ -47,6 +52,10 @@ def six_dir(scene: Scene, p: SixDirParams, result: ValidationResult) -> Program:
         result.phases[name] = PhaseResult(ok, disp, rot)
         worst = (max(worst[0], disp), max(worst[1], rot))
         all_ok &= ok
+        if not ok and p.early_exit and name != list(SIX_DIRECTIONS)[-1]:
+            result.stopped_early = f"after push {name}: slipped"
+            worst = (float("nan"), float("nan"))
+            break
     result.displacement_m, result.rotation_rad = worst
     result.passed = all_ok
     result.failure = None if all_ok else Failure.SLIPPED
