@@ -25,11 +25,16 @@ The validator treats these grasps like any other (its contact-derived pregrasp a
 :mod:`sim.validate.targets`): giving them their own closing (from the grasp toward the closing
 posture) changed the pass rate by object, up and down, not overall (README).
 
+A power demo (a whole-hand wrap a person made, :data:`sim.demo.POWER`) seeds the generator:
+the fingers close toward the person's posture and part of the palm placements are the
+person's, varied (:mod:`augment.power.demo_seed`).
+
 The output is an :class:`augment.fsg.result.FsgGrasp` list in an :class:`FsgResult`, so the
 dataset, validation and report work unchanged.
 """
 
+from augment.power.demo_seed import PowerSeed
 from augment.power.generate import generate_power
 from augment.power.params import PowerParams, load_power_params
 
-__all__ = ["PowerParams", "generate_power", "load_power_params"]
+__all__ = ["PowerParams", "PowerSeed", "generate_power", "load_power_params"]

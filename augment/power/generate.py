@@ -23,7 +23,16 @@ from augment.fsg.checks import Dedup
 from augment.fsg.params import load_fsg_params
 from augment.fsg.progress import run_workers, worker_slot
 from augment.fsg.result import FsgGrasp, FsgResult
-from augment.object_cloud import object_cloud
+from augment.object_cloud import ObjectCloud, object_cloud
+from augment.power.demo_seed import (
+    MIN_OTHER_FINGERS,
+    PowerSeed,
+    SeedShare,
+    approach_postures,
+    place_seeded,
+    seeded_palm,
+    seeded_target,
+)
 from augment.power.params import PowerParams, load_power_params
 from augment.power.placement import hand_gaps_m, palm_quats, place_palm
 from sim.errors import DexaugError
@@ -58,6 +67,7 @@ class _Job:
     protocol: str
     params: PowerParams
     use_affordance: bool
+    seed: PowerSeed | None = None
 
 
 def _finger_of_body(scene: Scene, hand: Hand) -> dict[int, int]:
@@ -128,6 +138,29 @@ def _clear_of_object(scene: Scene, grasp: Grasp, contact_m: float) -> Grasp | No
     return None
 
 
+def _place(scene: Scene, rng: np.random.Generator, job: _Job, cloud: ObjectCloud,
+           idx: np.ndarray, approaches: list[np.ndarray], seeded: bool
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """One placement: (palm position, palm quaternion, approach posture), object frame; None
+    when it misses. ``seeded``: the demo's palm varied (:func:`seeded_palm`); else a sampled
+    surface point of ``cloud`` (``idx``) with the palm against it, the first of
+    ``approaches`` that places."""
+    p = job.params
+    if seeded and job.seed is not None:   # the person's approach
+        point, normal, quat = seeded_palm(rng, job.seed, cloud.com_m, p.seed_turn_deg,
+                                          p.seed_shift_m)
+        placed = place_seeded(scene, point, normal, quat, approaches, p.standoff_m)
+        return None if placed is None else (placed[0], quat, placed[1])
+    k = int(rng.choice(idx))
+    point, normal = cloud.points[k], cloud.normals[k]
+    quat = palm_quats(normal[None], rng.uniform(0.0, 2 * math.pi, 1))[0]
+    for q_from in approaches:
+        pos = place_palm(scene, point, normal, quat, q_from, p.standoff_m, p.max_palm_gap_m)
+        if pos is not None:
+            return pos, quat, q_from
+    return None
+
+
 def _worker_run(job: _Job, seed: int, worker: int, n: int, deadline: float,
                 board: str | None = None) -> tuple[list[FsgGrasp], dict[str, int]]:
     """One worker's search: up to ``n`` grasps, at most ``n × tries_per_grasp`` closings,
@@ -146,6 +179,12 @@ def _search(job: _Job, seed: int, worker: int, n: int, deadline: float,
     hand, scene = validator.hand, validator.scene("lift-drop")
     effort = SceneEffort(job.hand, job.obj, job.protocol)
     q_open, q_close = _postures(hand, p)
+    approaches = [q_open]
+    if job.seed is not None:   # a power demo: from and toward the person's posture
+        approaches = approach_postures(job.seed, q_open)
+        q_close = seeded_target(hand, job.seed, q_close, p.seed_overshoot)
+    min_used = 1 + (MIN_OTHER_FINGERS if job.seed is not None else 1)
+    share = SeedShare(p.seed_share) if job.seed is not None else None
     cloud = object_cloud(load_object(job.obj))
     idx = cloud.part_indices if job.use_affordance and cloud.part_mask.any() else \
         np.arange(len(cloud.points))
@@ -161,15 +200,16 @@ def _search(job: _Job, seed: int, worker: int, n: int, deadline: float,
         if len(out) >= n or time.time() >= deadline or stats["closed"] >= closings:
             break
         stats["candidates"] += 1
-        k = int(rng.choice(idx))
-        point, normal = cloud.points[k], cloud.normals[k]
-        quat = palm_quats(normal[None], rng.uniform(0.0, 2 * math.pi, 1))[0]
-        pos = place_palm(scene, point, normal, quat, q_open, p.standoff_m, p.max_palm_gap_m)
-        if pos is None:
+        seeded = share is not None and share.pick(rng)
+        placed = _place(scene, rng, job, cloud, idx, approaches, seeded)
+        if placed is None:
             stats["placement"] += 1
             continue
+        pos, quat, q_from = placed
         stats["closed"] += 1
-        grasp = close_on_object(scene, pos, quat, q_open, q_close, close_time_s=p.close_time_s,
+        if seeded:
+            stats["seeded_closed"] += 1
+        grasp = close_on_object(scene, pos, quat, q_from, q_close, close_time_s=p.close_time_s,
                                 hold_time_s=p.hold_time_s, release_after_s=release_s)
         grasp = _clear_of_object(scene, grasp, p.contact_m)
         if grasp is None:
@@ -177,7 +217,9 @@ def _search(job: _Job, seed: int, worker: int, n: int, deadline: float,
             continue
         pts, nrm, fin, palm = _contacts(scene, finger_of, p.contact_m)
         used = sorted(set(fin.tolist()))
-        if thumb not in used or len(used) < 2:
+        if share is not None:
+            share.record(seeded, thumb in used and len(used) >= min_used)
+        if thumb not in used or len(used) < min_used:
             stats["no_opposition"] += 1
             continue
         if dedup.is_duplicate(grasp.palm_pos, grasp.palm_quat_wxyz, grasp.joints):
@@ -198,6 +240,8 @@ def _search(job: _Job, seed: int, worker: int, n: int, deadline: float,
                             volume=metrics.volume, worker=worker, actuator_effort=e))
         stats["accepted"] += 1
         stats["palm_contact"] += palm
+        if seeded:
+            stats["seeded_accepted"] += 1
         set_count(len(out))
     return out, dict(stats)
 
@@ -205,19 +249,23 @@ def _search(job: _Job, seed: int, worker: int, n: int, deadline: float,
 def generate_power(hand: Hand, obj_name: str, *, n: int = 10, seed: int = 0,
                    workers: int = 1, time_budget_s: float = 60.0, protocol: str = "lift-drop",
                    use_affordance: bool = True, params: PowerParams | None = None,
-                   progress: Callable[[int], None] | None = None) -> FsgResult:
+                   progress: Callable[[int], None] | None = None,
+                   demo: PowerSeed | None = None) -> FsgResult:
     """Up to ``n`` power grasps of object ``obj_name`` with ``hand`` (module docstring),
     ranked by the actuator effort that ``protocol``'s loads need, least first: the search finds
-    ``oversample`` × n and keeps the n of least effort.
+    ``oversample`` × n and keeps the n of least effort. With ``demo`` (a power demo), the
+    fingers close toward the person's posture and part of the palms are the person's, varied
+    (:mod:`augment.power.demo_seed`); kept grasps touch with the thumb and two other fingers.
 
     Stats: ``candidates`` placements tried, dropped at ``placement`` (the palm overhangs an
     edge), ``closed`` hands closed on the object, dropped at ``penetration`` (a link stays
     inside the object), ``no_opposition`` (the closed hand does not touch with the thumb
     and another finger), ``duplicate``, ``effort`` (the actuators cannot hold the loads at
-    these contacts), ``accepted`` (``palm_contact`` of them with the palm touching)."""
+    these contacts), ``accepted`` (``palm_contact`` of them with the palm touching); with
+    ``demo``, ``seeded_closed`` / ``seeded_accepted`` of them from the demo's palm varied."""
     p = params or load_power_params(hand_file=hand.config.file)
     _postures(hand, p)
-    job = _Job(hand.name, obj_name, protocol, p, use_affordance)
+    job = _Job(hand.name, obj_name, protocol, p, use_affordance, demo)
     t0 = time.perf_counter()
     deadline = time.time() + time_budget_s
     wanted = math.ceil(n * p.oversample)
@@ -251,7 +299,8 @@ def generate_power(hand: Hand, obj_name: str, *, n: int = 10, seed: int = 0,
                     obj_name, len(grasps), n, stats["candidates"], stopped,
                     {k: v for k, v in stats.items() if k not in ("candidates", "accepted")})
     return FsgResult(grasps=grasps, requested=n, stopped=stopped, elapsed_s=elapsed,
-                     stats=dict(stats), finger_sets=[tuple(hand.finger_names)])
+                     stats=dict(stats),
+                     finger_sets=[tuple(demo.fingers if demo else hand.finger_names)])
 
 
 def _run_pool(job: _Job, seed: int, n: int, deadline: float, workers: int,

@@ -44,6 +44,11 @@ class PowerParams:
             fingertip mode is below 30 %").
         tries_per_grasp: closings (one simulation each) per requested grasp before giving up;
             placements, which cost a few collision passes, up to ten times as many.
+        seed_overshoot / seed_share / seed_turn_deg / seed_shift_m: with a power demo as the
+            seed (:mod:`augment.power.demo_seed`): how far past the person's posture toward
+            ``close_pose`` the touching fingers close (0–1), the share of placements that are
+            the demo's palm frame turned about the object's centre of mass by up to
+            ``seed_turn_deg`` degrees and shifted up to ``seed_shift_m``.
     """
 
     standoff_m: float = 0.003
@@ -58,6 +63,10 @@ class PowerParams:
     tries_per_grasp: int = 20
     oversample: float = 2.0
     auto_below: float = 0.3
+    seed_overshoot: float = 0.5
+    seed_share: float = 0.5
+    seed_turn_deg: float = 30.0
+    seed_shift_m: float = 0.01
 
     def __post_init__(self) -> None:
         for name in ("standoff_m", "hold_time_s"):
@@ -72,6 +81,13 @@ class PowerParams:
             raise ValueError(f"oversample must be a number >= 1, got {self.oversample}")
         if not 0.0 <= self.auto_below <= 1.0:
             raise ValueError(f"auto_below must be a share from 0 to 1, got {self.auto_below}")
+        for name in ("seed_overshoot", "seed_share"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise ValueError(f"{name} must be a share from 0 to 1, got {getattr(self, name)}")
+        for name in ("seed_turn_deg", "seed_shift_m"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"{name} must be a number >= 0, got {v}")
         if self.tries_per_grasp < 1:
             raise ValueError(f"tries_per_grasp must be >= 1, got {self.tries_per_grasp}")
 

@@ -46,11 +46,13 @@ from augment.fsg.result import FsgResult
 from augment.fsg.run import TOO_WEAK, generate
 from augment.fsg.table import TablePlane
 from augment.object_cloud import ObjectCloud, object_cloud
+from augment.power import PowerSeed, generate_power
 from dexaug.pipeline.options import AugmentOptions, Progress, demo_dir, result_configs, run_key
+from dexaug.pipeline.protocol_facts import DEFAULT_PROTOCOL, hold_oversample
 from dexaug.pipeline.report import write_report
 from dexaug.pipeline.result_lock import result_lock
 from dexaug.pipeline.summary import DemoSummary, demo_grasp_text, demo_verdict, finished
-from sim.demo import Demo, demo_to_json
+from sim.demo import POWER, Demo, demo_to_json
 from sim.errors import DexaugError
 from sim.hand.model import Hand
 from sim.io import write_bytes_atomic
@@ -72,7 +74,7 @@ POOL_PRELOAD = ("augment.fsg.run", "sim.validate.batch")
 
 def generate_grasps(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: WorkspaceCloud, *,
                     link_penetration: bool = True, workers: int = 1,
-                    hold_protocol: str | None = "lift-drop", **kwargs: Any) -> FsgResult:
+                    hold_protocol: str | None = DEFAULT_PROTOCOL, **kwargs: Any) -> FsgResult:
     """FSG (:func:`augment.fsg.run.generate`) wired to this project's validator: with
     ``link_penetration``, the point-cloud checks end with the exact check in the validator's
     scene, so no output fails validation for a penetration the simulator sees; with
@@ -89,9 +91,10 @@ def generate_grasps(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: Works
         asset = asset or load_object(obj.name)
         hold = hold_loads(asset, hold_protocol)
         effort = SceneEffort(hand.name, obj.name, hold_protocol)
-    if hold_protocol == "dgb":
+    if hold_protocol is not None:
         params = kwargs.get("params") or load_fsg_params(hand.config)
-        kwargs["params"] = dataclasses.replace(params, hold_oversample=params.dgb_hold_oversample)
+        kwargs["params"] = dataclasses.replace(
+            params, hold_oversample=hold_oversample(params, hold_protocol))
     if workers > 1:
         persistent_pool(workers, preload=POOL_PRELOAD)
     res = generate(hand, obj, workspace, link_penetration=link_penetration,
@@ -149,7 +152,8 @@ class Computed:
 def compute_fsg(hand_name: str, object_name: str, demo: Demo | None, opts: AugmentOptions, *,
                 workers: int, progress: Progress | None = None,
                 ) -> tuple[Computed, Hand, ObjectAsset, ObjectCloud]:
-    """Workspace (demo-centred, or the hand's manual one without ``demo``) and FSG with
+    """Workspace (demo-centred, or the hand's manual one without ``demo``) and FSG — for a
+    power demo (a whole-hand wrap) the power generator it seeds instead — with
     ``workers`` processes (its output depends on that count: worker k uses seed + k). Returns
     the result and the loaded hand, object and cloud (for a report in the same process)."""
     tick = progress or (lambda stage, done, total: None)
@@ -158,6 +162,14 @@ def compute_fsg(hand_name: str, object_name: str, demo: Demo | None, opts: Augme
     hand = Hand.load(hand_name)
     obj = load_object(object_name)
     cloud = object_cloud(obj)
+    if demo is not None and demo.grasp_type == POWER:   # a wrap: FSG's palm check refuses it
+        res = generate_power(hand, obj.name, n=opts.n, seed=opts.seed, workers=workers,
+                             time_budget_s=opts.time_budget_s, demo=PowerSeed.from_demo(demo),
+                             protocol=opts.validate or DEFAULT_PROTOCOL,
+                             progress=lambda k: tick("fsg", k, opts.n))
+        timings["fsg"] = time.perf_counter() - t0
+        return (Computed(hand.name, obj.name, tuple(hand.joint_names), tuple(hand.finger_names),
+                         res, timings), hand, obj, cloud)
     tick("workspace", 0, 1)
     ws = build_workspace(hand, demo=DemoSeed.from_demo(demo) if demo is not None else None)
     tick("workspace", 1, 1)
@@ -170,7 +182,7 @@ def compute_fsg(hand_name: str, object_name: str, demo: Demo | None, opts: Augme
                           link_penetration=opts.link_penetration, seed=opts.seed,
                           finger_iteration=opts.finger_iteration,
                           time_budget_s=opts.time_budget_s, workers=workers,
-                          hold_protocol=opts.validate or "lift-drop",
+                          hold_protocol=opts.validate or DEFAULT_PROTOCOL,
                           progress=lambda k: tick("fsg", k, opts.n))
     tick("fsg", len(res.grasps), opts.n)
     timings["fsg"] = time.perf_counter() - t0

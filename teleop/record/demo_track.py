@@ -11,7 +11,7 @@ grasp is. Times: nanoseconds (integers) on the track, seconds in events.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -28,7 +28,8 @@ __all__ = ["SCENE_BREAKS", "Track", "marked_state", "object_at", "object_changes
 class Track:
     """Per-state arrays of a session: log times (ns), the extraction clock (nanoseconds of
     simulated time, see :func:`_clock_ns`) and its offset from the states' own ``t_s``, seq,
-    states, fingertip contacts."""
+    states, fingertip contacts, and every hand body touching the object (palm and phalanges
+    too: a whole-hand wrap, :mod:`teleop.record.power_demo`) with those contacts."""
 
     t_ns: np.ndarray
     clock_ns: np.ndarray
@@ -37,6 +38,10 @@ class Track:
     states: list[dict[str, Any]]
     contacts: list[list[dict[str, Any]]]
     fingers_touching: list[frozenset[str]]
+    #: per state every hand–object contact, and the hand bodies in them (empty lists on a
+    #: track built without them: no state is then a wrap)
+    hand_contacts: list[list[dict[str, Any]]] = field(default_factory=list)
+    bodies_touching: list[frozenset[str]] = field(default_factory=list)
 
 
 def _pairing(contacts: list[tuple[int, dict[str, Any]]]) -> str:
@@ -88,18 +93,20 @@ def read_track(session: Session, fingers: tuple[str, ...]) -> Track:
     pairing = _pairing(contacts)
     by_step = {_step_key(t, c, pairing): c for t, c in contacts}
     known = set(fingers)
-    t_ns, seq, st, con, touching = [], [], [], [], []
+    t_ns, seq, st, con, touching, every, bodies = [], [], [], [], [], [], []
     for t, s in states:
-        c = [x for x in by_step.get(_step_key(t, s, pairing), {}).get("contacts", [])
-             if x.get("finger") in known]
+        hand = by_step.get(_step_key(t, s, pairing), {}).get("contacts", [])
+        c = [x for x in hand if x.get("finger") in known]
         t_ns.append(t)
         seq.append(s.get("seq"))
         st.append(s)
         con.append(c)
         touching.append(frozenset(x["finger"] for x in c))
+        every.append(hand)
+        bodies.append(frozenset(str(x["hand_body"]) for x in hand if "hand_body" in x))
     log_ns = np.asarray(t_ns, np.int64)
     clock, offset = _clock_ns(st, log_ns) if st else (log_ns, None)
-    return Track(log_ns, clock, offset, seq, st, con, touching)
+    return Track(log_ns, clock, offset, seq, st, con, touching, every, bodies)
 
 
 #: events after which the scene is not the one before: a contact run never spans them

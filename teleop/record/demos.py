@@ -15,6 +15,14 @@ those, for ties). Contact losses shorter than ``max_gap_s`` do not split a run. 
 people lift 0.12–0.64 s after first touching (median 0.36 s), so the contact before the lift
 is often shorter than ``min_duration_s``, and a hand that carries the object up, or in the
 demonstration mode rises off the held object right after, has grasped it.
+A *whole-hand wrap* — the thumb, ``min_fingers`` other fingers and the palm side (or the
+inner phalanges of ``power_inner_fingers`` fingers) on the object, :mod:`teleop.record.power_demo`
+— lasting ``power_min_s`` that the hand lifts (the same lift confirmation) is a *power demo*
+(:data:`sim.demo.POWER`, how "lift-confirmed wrap", or "grasp_mark" when marked): its moment
+is the wrap state with the most hand bodies on the object, its fingers every finger on it with
+any link, and the fingertip runs inside it are the same grasp, not demos of their own. FSG
+cannot augment a wrap (its palm check refuses a palm on the object); the augmenter seeds its
+power generator with it.
 An operator's ``grasp_mark`` event names a moment: the state it names
 (``seq``) or the last one logged before it — or, within ``mark_snap_s`` of it, the usable state
 with the most fingertips in contact (ties: the nearest), because a person marks with a button
@@ -49,7 +57,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sim.demo import Demo, DemoError
+from sim.demo import POWER, PRECISION, Demo, DemoError
 from sim.hand.model import Hand
 from sim.transforms import pose_inv, pose_mul
 from teleop.record.demo_quality import fragment_flag, slip_flag, table_in_object_frame
@@ -61,6 +69,7 @@ from teleop.record.demo_track import (
     read_track,
     scene_breaks,
 )
+from teleop.record.power_demo import link_bodies, wrap_fingers, wrap_mask, wrap_points
 from teleop.record.session import Session, SessionError, open_session
 
 __all__ = ["DemoParams", "extract_demos"]
@@ -92,6 +101,11 @@ class DemoParams:
     #: in the demonstration mode (object held fixed) the palm must rise this soon after the
     #: run ends (s): the operator lifting off the fixed object is the lift
     lift_window_s: float = 1.0
+    #: a whole-hand wrap (:mod:`teleop.record.power_demo`: the thumb, ``min_fingers`` other
+    #: fingers and the palm side, or the inner links of ``power_inner_fingers`` fingers, on
+    #: the object) lasting this long (s, gaps bridged) that the hand lifts is a power demo
+    power_min_s: float = 0.1
+    power_inner_fingers: int = 2
 
 
 def _runs(ok: np.ndarray) -> list[tuple[int, int]]:
@@ -112,19 +126,21 @@ def _merged_runs(clock_ns: np.ndarray, ok: np.ndarray, max_gap_s: float) -> list
     return merged
 
 
-def _best_in(track: Track, lo: int, hi: int, ok: np.ndarray) -> int:
+def _best_in(track: Track, lo: int, hi: int, ok: np.ndarray, power: bool = False) -> int:
     """The grasp moment of the run [lo, hi): of its states that meet the rule (``ok``: the
-    lead finger and enough others touching), the one with the most fingertips (the middle one
-    of ties). Only those: a gap-bridged run also holds states inside its gaps, and the fullest
-    of all could be one without the thumb — a thumbless demo of a thumb grasp."""
+    lead finger and enough others touching), the one with the most fingertips — with
+    ``power``, the most hand bodies (the middle one of ties). Only those: a gap-bridged run
+    also holds states inside its gaps, and the fullest of all could be one without the thumb
+    — a thumbless demo of a thumb grasp."""
     idx = lo + np.flatnonzero(ok[lo:hi])
-    n = np.array([len(track.fingers_touching[i]) for i in idx])
+    n = np.array([len(track.bodies_touching[i] if power else track.fingers_touching[i])
+                  for i in idx])
     best = idx[n == n.max()]
     return int(best[len(best) // 2])
 
 
 def _demo_at(session: Session, track: Track, i: int, hand: str, obj: str, how: str,
-             duration_s: float, run_end: int | None) -> Demo:
+             duration_s: float, run_end: int | None, power: bool = False) -> Demo:
     s = track.states[i]
     joints = np.asarray(s["qpos"], float)
     inv_p, inv_q = pose_inv(np.asarray(s["object_pos_m"], float),
@@ -140,6 +156,10 @@ def _demo_at(session: Session, track: Track, i: int, hand: str, obj: str, how: s
     t_s = (int(track.t_ns[i]) - int(session.start_time_ns or track.t_ns[0])) * 1e-9
     meta = session.metadata
     fingers = tuple(sorted(track.fingers_touching[i]))
+    links = link_bodies(track, i, _hand(hand))
+    if power:   # the person's finger set: every finger on the object, with any link
+        fingers = tuple(sorted(wrap_fingers(track, i, _hand(hand))))
+        pts = wrap_points(track, i, _hand(hand))
     flags = [fragment_flag(_hand(hand), joints, fingers)]
     if meta.get("object_mode", "free") == "free" and run_end is not None:
         flags.append(slip_flag(track.states[i:run_end]))
@@ -149,7 +169,8 @@ def _demo_at(session: Session, track: Track, i: int, hand: str, obj: str, how: s
                 duration_s=duration_s, fingers=fingers,
                 table=table_in_object_frame(meta.get("table"), s["object_pos_m"],
                                             s["object_quat_wxyz"]),
-                flags=tuple(f for f in flags if f))
+                flags=tuple(f for f in flags if f), grasp_type=POWER if power else PRECISION,
+                link_contacts=links)
     for flag in demo.flags:
         log.warning("%s: demo %s: %s", session.path, demo.id, flag)
     return demo
@@ -194,29 +215,58 @@ def extract_demos(path: Path | str, params: DemoParams | None = None) -> list[De
     ok = np.array([lead in f for f in track.fingers_touching]) & (n_touch >= p.min_fingers)
     clock = track.clock_ns
     free = meta.get("object_mode", "free") != "demo"
+    breaks = scene_breaks(session, track)
     runs = []
-    for lo, hi in _split_at(_merged_runs(clock, ok, p.max_gap_s), scene_breaks(session, track)):
+    for lo, hi in _split_at(_merged_runs(clock, ok, p.max_gap_s), breaks):
         dur = (int(clock[hi - 1]) - int(clock[lo])) * 1e-9
         if dur >= p.min_duration_s:
             runs.append((lo, hi, dur, "stable contact"))
         elif dur >= p.min_confirmed_s and _lift_confirmed(track, lo, hi, p, free):
             runs.append((lo, hi, dur, "lift-confirmed contact"))
+    wrap = wrap_mask(track, _hand(hand), p.min_fingers, p.power_inner_fingers)
+    wraps = [(lo, hi, (int(clock[hi - 1]) - int(clock[lo])) * 1e-9)
+             for lo, hi in _split_at(_merged_runs(clock, wrap, p.max_gap_s), breaks)]
+    wraps = [w for w in wraps if w[2] >= p.power_min_s and _lift_confirmed(track, *w[:2], p, free)]
+    # a lifted wrap is the grasp: the fingertip runs inside it are the same grasp
+    runs = [r for r in runs if not any(r[0] < hi and lo < r[1] for lo, hi, _ in wraps)]
     marks = _mark_states(session, track, p, lead, ok)
     window_ns = p.mark_window_s * 1e9
-    moments: dict[int, tuple[str, float, int | None]] = {}
+    moments: dict[int, tuple[str, float, int | None, bool]] = {}
+    for lo, hi, dur in wraps:
+        near = [m for m in marks
+                if clock[lo] - window_ns <= clock[m] <= clock[hi - 1] + window_ns]
+        marks = [m for m in marks if m not in near]
+        at = _wrap_moment(track, lo, hi, wrap, near[0] if near else None, p.mark_snap_s)
+        moments[at] = ("grasp_mark" if near else "lift-confirmed wrap", dur, hi, True)
     for lo, hi, dur, how in runs:
         near = [m for m in marks
                 if clock[lo] - window_ns <= clock[m] <= clock[hi - 1] + window_ns]
         marks = [m for m in marks if m not in near]
         moments[near[0] if near else _best_in(track, lo, hi, ok)] = (
-            "grasp_mark" if near else how, dur, hi)
+            "grasp_mark" if near else how, dur, hi, False)
     for m in marks:
-        moments[m] = ("grasp_mark", 0.0, None)
+        moments[m] = ("grasp_mark", 0.0, None, False)
     if not moments:
-        raise DemoError(f"{path}: no usable grasp: {_why_not(track, n_touch, ok, lead, p)}")
+        raise DemoError(f"{path}: no usable grasp: {_why_not(track, n_touch, ok, lead, p)}"
+                        + (f"; a whole-hand wrap touched but was not held {p.power_min_s} s "
+                           f"and lifted" if wrap.any() else ""))
     changes = object_changes(session, track)
-    return [_demo_at(session, track, i, hand, object_at(changes, i, obj), how, dur, end)
-            for i, (how, dur, end) in sorted(moments.items())]
+    return [_demo_at(session, track, i, hand, object_at(changes, i, obj), how, dur, end, power)
+            for i, (how, dur, end, power) in sorted(moments.items())]
+
+
+def _wrap_moment(track: Track, lo: int, hi: int, wrap: np.ndarray, mark: int | None,
+                 snap_s: float) -> int:
+    """The moment of the wrap run [lo, hi): the wrap state with the most hand bodies on the
+    object within ``snap_s`` of an operator's mark (the nearest of ties), else the run's
+    fullest (:func:`_best_in`)."""
+    if mark is not None:
+        idx = np.flatnonzero(wrap & (np.abs(track.clock_ns - track.clock_ns[mark]) <= snap_s * 1e9))
+        if len(idx):
+            n = np.array([len(track.bodies_touching[k]) for k in idx])
+            best = idx[n == n.max()]
+            return int(best[np.argmin(np.abs(best - mark))])
+    return _best_in(track, lo, hi, wrap, power=True)
 
 
 def _heights_m(track: Track, key: str, lo: int, hi: int) -> np.ndarray:
