@@ -21,7 +21,7 @@ from teleop.record.schemas import TOPIC_CONTACTS, TOPIC_STATE
 from teleop.record.session import Session
 
 __all__ = ["SCENE_BREAKS", "Track", "marked_state", "object_at", "object_changes", "read_track",
-           "scene_breaks"]
+           "scene_breaks", "session_time_s"]
 
 
 @dataclass
@@ -77,6 +77,13 @@ def _clock_ns(states: list[dict[str, Any]], t_ns: np.ndarray
     for j in np.flatnonzero(np.diff(t) < 0) + 1:  # the scene was rebuilt: sim time restarted
         clock[j:] += clock[j - 1] - clock[j] + (t_ns[j] - t_ns[j - 1])
     return clock, clock - t
+
+
+def session_time_s(track: Track, i: int) -> float:
+    """Seconds from the session's first state to state ``i`` on the extraction clock (simulated
+    time, continuous across scene rebuilds; log time in files whose states carry no ``t_s``): a
+    demo's time, the same in every re-recording of the session."""
+    return (int(track.clock_ns[i]) - int(track.clock_ns[0])) * 1e-9
 
 
 def read_track(session: Session, fingers: tuple[str, ...]) -> Track:

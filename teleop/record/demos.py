@@ -42,7 +42,10 @@ the same demos; an object change restarts the simulation's clock, and the states
 continue from the last one before (plus the log time between them). A ``grasp_mark`` names its
 state by ``seq`` when it carries one (the last state with it), else by its simulated ``t_s``
 (the last state at or before it), else by log time (the last state logged at or before it).
-Log times only place a demo in its file: :attr:`sim.demo.Demo.time_s` and the demo id.
+A demo's time (:attr:`sim.demo.Demo.time_s`, and so its id) is on that clock too: simulated
+seconds since the session's first state. A re-recording runs faster than real time, so its log
+times differ from run to run and from the person's (the same grasp was ``@0.62s``, ``@0.79s``
+and ``@1.65s`` on one machine, by its load); its simulated time is the person's, in every run.
 
 Why simulated contacts and not the operator's hand: the augmenter works on the robot hand's
 grasp, and the recording's contacts are the robot's, in the robot fingertip frames.
@@ -68,6 +71,7 @@ from teleop.record.demo_track import (
     object_changes,
     read_track,
     scene_breaks,
+    session_time_s,
 )
 from teleop.record.power_demo import link_bodies, wrap_fingers, wrap_mask, wrap_points
 from teleop.record.session import Session, SessionError, open_session
@@ -153,7 +157,7 @@ def _demo_at(session: Session, track: Track, i: int, hand: str, obj: str, how: s
         mine = [c for c in track.contacts[i] if c["finger"] == finger]
         tip[finger] = np.mean([c["pos_hand_body_m"] for c in mine], axis=0)
         pts[finger] = np.array([c["pos_object_m"] for c in mine], float)
-    t_s = (int(track.t_ns[i]) - int(session.start_time_ns or track.t_ns[0])) * 1e-9
+    t_s = session_time_s(track, i)
     meta = session.metadata
     fingers = tuple(sorted(track.fingers_touching[i]))
     links = link_bodies(track, i, _hand(hand))
@@ -327,7 +331,7 @@ def _mark_states(session: Session, track: Track, p: DemoParams, lead: str,
         else:
             log.warning("%s: grasp_mark at %.2f s has no state with >= %d fingertips (%s among "
                         "them) touching the object within %.1f s; ignored", session.path,
-                        (t - (session.start_time_ns or t)) * 1e-9, p.min_fingers, lead,
+                        session_time_s(track, i), p.min_fingers, lead,
                         p.mark_window_s)
     return out
 
