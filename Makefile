@@ -32,7 +32,7 @@ $(DEMO_STAMP): pyproject.toml $(CONSTRAINTS)
 # The package with the test tooling and Ray.
 $(TEST_STAMP): pyproject.toml $(CONSTRAINTS)
 	$(make-venv)
-	$(PIP_INSTALL) -e '.[dev,ray,envs]'
+	$(PIP_INSTALL) -e '.[dev,ray,envs,lerobot]'
 	touch $@
 
 # Offscreen rendering needs an EGL or OSMesa library; install Debian's when we may (root, apt).

@@ -27,17 +27,21 @@ def _export_args(p: argparse.ArgumentParser) -> None:
     from sim.validate.config import SQUEEZE_CONVENTIONS
 
     p.add_argument("dataset", type=dataset_file, help="a grasps.h5 written by augment/generate")
-    p.add_argument("--format", choices=FORMATS, required=True,
+    p.add_argument("--format", choices=(*FORMATS, "lerobot"), required=True,
                    help="dexgraspbench: one JSON line per grasp in the DexGraspBench reference "
                         "layout (palm body pose in the world, joints by name, pregrasp/squeeze); "
                         "npz: every column of every table, for numpy.load; fsg: the FSG authors' "
                         "HDF5 (rh_palm pose in the object frame, their 22 joints, gws (N,1), "
                         "float32); bodex: a folder of DexGraspBench per-grasp .npy files "
                         "(pregrasp/grasp/squeeze qpos of its floating Shadow Hand, object pose), "
-                        "with the usual permissions (0777 less the umask)")
+                        "with the usual permissions (0777 less the umask); lerobot: every "
+                        "grasp rolled out by lift-drop, the successful rollouts as episodes of "
+                        "a LeRobot dataset (format v3.0, a folder; failed ones listed in its "
+                        "failed_rollouts.json; needs the extra dexaug[lerobot])")
     p.add_argument("--out", type=Path, required=True,
-                   help="file to write (replaced atomically); for bodex a folder (replaced "
-                        "whole, only if it is empty or an earlier bodex export)")
+                   help="file to write (replaced atomically); for bodex and lerobot a folder "
+                        "(replaced whole, only if it is empty or an earlier export of that "
+                        "format)")
     p.add_argument("--object", help="only this object's table (default: every object)")
     p.add_argument("--rejected", action="store_true",
                    help="also the grasps that failed validation (their verdict says so); "
@@ -124,7 +128,8 @@ def _refuse_options(args: argparse.Namespace) -> None:
     """Options that mean nothing for the chosen format are refused rather than ignored."""
     allowed = {"dexgraspbench": {"object_pose"}, "npz": set(),
                "fsg": {"object_frame", "object_transform"},
-               "bodex": {"object_pose", "squeeze_convention", "object_root"}}[args.format]
+               "bodex": {"object_pose", "squeeze_convention", "object_root"},
+               "lerobot": set()}[args.format]
     given = {"object_pose": args.object_pose is not None,
              "object_frame": args.object_frame != "dexaug",
              "object_transform": args.object_transform is not None,
@@ -138,22 +143,26 @@ def _refuse_options(args: argparse.Namespace) -> None:
 @command("export", _export_args)
 def export(args: argparse.Namespace, console: Console) -> int:
     """Export a grasp dataset: DexGraspBench's reference JSONL, a flat .npz, the FSG authors'
-    HDF5 or DexGraspBench/BODex per-grasp files.
+    HDF5, DexGraspBench/BODex per-grasp files, or its grasps rolled out as a LeRobot dataset.
 
     The dexgraspbench layout is the one of ../shared/reference/dexgraspbench/grasps.jsonl: the
     hand's palm body pose and the object pose in the world, q_grasp / q_pregrasp / q_squeeze by
     joint name, plus dexaug's verdict; reading the shared reference file and writing it back
     gives its poses and angles to 1e-9 (tests/test_export.py). fsg and bodex convert our
     frame_palm and 24 joints to their rh_palm-based poses and 22 joints (augment.export.fsg,
-    augment.export.bodex; tests/test_export_fsg.py, tests/test_export_bodex.py).
+    augment.export.bodex; tests/test_export_fsg.py, tests/test_export_bodex.py). lerobot
+    rolls every grasp out by lift-drop and writes the successful episodes in LeRobot's
+    format v3.0 (augment.export.lerobot, docs/learning.md; tests/test_export_lerobot.py).
     """
     from augment import export as ex
 
     _refuse_options(args)
-    require_writable(args.out, "--out", folder=args.format == "bodex")
+    require_writable(args.out, "--out", folder=args.format in ("bodex", "lerobot"))
     tables = _tables(args.dataset, args.object, args.rejected)
     source = str(args.dataset)
     note = ""
+    if args.format == "lerobot":
+        return _export_lerobot(args, console, tables)
     if args.format == "npz":
         n = ex.write_npz(args.out, tables)
     elif args.format == "dexgraspbench":
@@ -190,3 +199,32 @@ def export(args: argparse.Namespace, console: Console) -> int:
 def _dropped_note(moved: int) -> str:
     return ("" if not moved else f"; {moved} grasps had the wrist off 0: its angles are dropped "
             "(their hand has no wrist; rh_palm and the fingers are exact)")
+
+
+def _export_lerobot(args: argparse.Namespace, console: Console, tables: dict) -> int:
+    """Roll every grasp out (a rich progress bar over the rollouts) and write the successful
+    ones as a LeRobot dataset (augment.export.lerobot); print the count and episodes/s."""
+    import time
+
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeRemainingColumn
+
+    from augment.export.lerobot import FAILED_FILE, pyarrow_modules, write_lerobot
+    from augment.export.lerobot_rollouts import count_grasps, rollouts
+
+    pyarrow_modules()   # the missing extra is said before any rollout, not after
+    hand = _hand(args.dataset, tables)
+    start = time.perf_counter()
+    with Progress("[progress.description]{task.description}", BarColumn(),
+                  MofNCompleteColumn(), TimeRemainingColumn(), console=console,
+                  transient=True) as bar:
+        task = bar.add_task("rolling out grasps", total=count_grasps(tables))
+        done = write_lerobot(args.out, rollouts(tables, hand), source=str(args.dataset),
+                             progress=lambda n: bar.update(task, completed=n))
+    wall_s = time.perf_counter() - start
+    rate = (done.episodes + done.failed) / wall_s if wall_s > 0 else float("inf")
+    console.print(Text(f"wrote {done.episodes} episodes ({done.frames} frames) of "
+                       f"{len(tables)} object(s) to {args.out} (lerobot v3.0); "
+                       f"{done.failed} failed rollouts listed in {args.out / FAILED_FILE}; "
+                       f"{done.episodes + done.failed} rollouts in {wall_s:.1f} s: "
+                       f"{rate:.2f} episodes/s"))
+    return 0
