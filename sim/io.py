@@ -13,13 +13,17 @@ from __future__ import annotations
 import logging
 import os
 import re
+import shutil
 import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-__all__ = ["STALE_TEMP_S", "atomic_path", "sweep_stale_temps", "write_bytes_atomic"]
+from sim.errors import DexaugError
+
+__all__ = ["STALE_TEMP_S", "atomic_path", "replace_folder", "sweep_stale_temps",
+           "write_bytes_atomic"]
 
 log = logging.getLogger(__name__)
 
@@ -108,3 +112,34 @@ def write_bytes_atomic(path: str | os.PathLike[str], payload: bytes, *, mode: in
     """Write ``payload`` to ``path`` atomically (:func:`atomic_path`, ``mode`` as there)."""
     with atomic_path(path, mode=mode) as tmp:
         tmp.write_bytes(payload)
+
+
+def replace_folder(out: Path, fill: Callable[[Path], None], *, marker: str, what: str) -> None:
+    """Run ``fill`` on a fresh folder beside ``out``, then put it in ``out``'s place: a reader
+    never sees half an export, and a failed one leaves ``out`` as it was. Replaces only an
+    empty folder or an earlier export of the same kind (one holding the file ``marker``, a
+    path relative to it); anything else is refused, naming ``what`` the folder should be. The
+    new folder gets the mode ``mkdir`` would give it (``mkdtemp``'s 0700 would make it
+    private)."""
+    if out.exists() and not (out.is_dir() and ((out / marker).is_file()
+                                               or not any(out.iterdir()))):
+        raise DexaugError(f"{out}: exists and is not an earlier {what} (no {marker}); "
+                          "not replaced")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.{os.getpid()}.", suffix=".tmp",
+                                dir=out.parent))
+    try:
+        umask = os.umask(0)
+        os.umask(umask)
+        tmp.chmod(0o777 & ~umask)
+        fill(tmp)
+        old = None
+        if out.exists():
+            old = out.with_name(f".{out.name}.{os.getpid()}.old")
+            out.rename(old)
+        tmp.rename(out)
+        if old is not None:
+            shutil.rmtree(old)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise

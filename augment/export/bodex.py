@@ -53,9 +53,6 @@ MeshProcess with its mesh frame kept. Units: metres, radians.
 from __future__ import annotations
 
 import json
-import os
-import shutil
-import tempfile
 from collections import Counter
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -69,6 +66,7 @@ from augment.export.foreign import ForeignHand, need_columns, same_joints, split
 from augment.grasp_table import grasp_stage_poses
 from sim.errors import DexaugError
 from sim.hand.model import Hand
+from sim.io import replace_folder
 from sim.transforms import pose_inv, pose_mul
 
 __all__ = ["BODEX_LAYOUT", "IDENTITY_POSE", "MANIFEST", "BodexExport", "bodex_hand",
@@ -186,38 +184,13 @@ def write_bodex(out: Path | str, tables: Mapping[str, ObjectTable], hand: Hand, 
 
 def _write_folder(out: Path, files: Mapping[str, dict[str, Any]], manifest: dict) -> None:
     """Write the files into a temp folder beside ``out``, then put it in ``out``'s place."""
-    if out.exists() and not (out.is_dir() and ((out / MANIFEST).is_file()
-                                               or not any(out.iterdir()))):
-        raise DexaugError(f"{out}: exists and is not an earlier bodex export (no {MANIFEST}); "
-                          "not replaced")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.{os.getpid()}.", suffix=".tmp",
-                                dir=out.parent))
-    try:
-        tmp.chmod(_new_folder_mode())   # mkdtemp's 0700 would make the export private
+    def fill(tmp: Path) -> None:
         for rel, data in files.items():
             (tmp / rel).parent.mkdir(parents=True, exist_ok=True)
             np.save(tmp / rel, np.array(data, dtype=object), allow_pickle=True)
         (tmp / MANIFEST).write_text(json.dumps(manifest, indent=1) + "\n")
-        old = None
-        if out.exists():
-            old = out.with_name(f".{out.name}.{os.getpid()}.old")
-            out.rename(old)
-        tmp.rename(out)
-        if old is not None:
-            shutil.rmtree(old)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
 
-
-def _new_folder_mode() -> int:
-    """The mode a new folder gets here (0777 less the process umask): the export is renamed
-    into place from a private temporary folder and must end up like any folder ``mkdir``
-    makes."""
-    umask = os.umask(0)
-    os.umask(umask)
-    return 0o777 & ~umask
+    replace_folder(out, fill, marker=MANIFEST, what="bodex export")
 
 
 def read_bodex(out: Path | str, hand: Hand | None = None) -> list[dict[str, Any]]:

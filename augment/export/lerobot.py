@@ -27,9 +27,6 @@ from __future__ import annotations
 
 import json
 import logging
-import os
-import shutil
-import tempfile
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -41,6 +38,7 @@ from augment.export.lerobot_frames import episode_columns, features_of, fps_of, 
 from augment.export.lerobot_stats import STAT_KEYS, aggregate, stats_of, to_json
 from sim.episodes.episode import Episode
 from sim.errors import DexaugError
+from sim.io import replace_folder
 
 __all__ = ["CODEBASE_VERSION", "DATA_PATH", "EPISODES_PATH", "FAILED_FILE", "LeRobotExport",
            "pyarrow_modules", "write_lerobot"]
@@ -100,7 +98,7 @@ def write_lerobot(out: Path | str, episodes: Iterable[Episode], *,
                 progress(seen)
         writer.finish(robot_type, source)
 
-    _replace_folder(out, fill)
+    replace_folder(out, fill, marker="meta/info.json", what="LeRobot export")
     done = writer.done
     done.root = out
     log.debug("wrote %d episodes (%d frames) to %s; %d failed rollouts kept apart",
@@ -261,30 +259,3 @@ def _write_tasks(pa: Any, pq: Any, path: Path, tasks: list[str]) -> None:
     table = table.replace_schema_metadata({"pandas": json.dumps(pandas_meta)})
     pq.write_table(table, path)
 
-
-def _replace_folder(out: Path, fill: Callable[[Path], None]) -> None:
-    """Run ``fill`` on a fresh folder beside ``out``, then put it in ``out``'s place: a
-    reader never sees half a dataset, and a failed export leaves ``out`` as it was. Replaces
-    only an empty folder or an earlier LeRobot export (one with meta/info.json)."""
-    if out.exists() and not (out.is_dir() and ((out / "meta" / "info.json").is_file()
-                                               or not any(out.iterdir()))):
-        raise DexaugError(f"{out}: exists and is not an earlier LeRobot export (no "
-                          "meta/info.json); not replaced")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.{os.getpid()}.", suffix=".tmp",
-                                dir=out.parent))
-    try:
-        umask = os.umask(0)
-        os.umask(umask)
-        tmp.chmod(0o777 & ~umask)   # mkdtemp's 0700 would make the dataset private
-        fill(tmp)
-        old = None
-        if out.exists():
-            old = out.with_name(f".{out.name}.{os.getpid()}.old")
-            out.rename(old)
-        tmp.rename(out)
-        if old is not None:
-            shutil.rmtree(old)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
