@@ -1,19 +1,17 @@
 """What the commands and reports need to know of a validation protocol, asked of the registry.
 
 Why: a command that branches on a protocol's name (``if protocol == "dgb"``) must be edited for
-every new protocol; asked here, a protocol is one plug-in (:mod:`sim.validate.protocols`) plus,
-at most, a line of this module. Facts the plug-ins already expose are read from them: which
-protocols a batch backend steps (those that run as one program,
-:class:`~sim.validate.protocols.base.ClosingProtocol`), and the registration order the choices
-keep. Three facts the plug-ins do not declare yet are read from a plug-in attribute when it has
-one, else from this module's interim table (the attribute each should become is named beside
-it):
+every new protocol; asked here, a protocol is one plug-in (:mod:`sim.validate.protocols`) and
+nothing else. Everything is read from the plug-ins: which protocols a batch backend steps (those
+that run as one program, :class:`~sim.validate.protocols.base.ClosingProtocol`), the
+registration order the choices keep, and three class attributes of
+:class:`~sim.validate.protocols.base.Protocol`:
 
 * ``drift_reference`` — where a verdict's displacement and rotation are measured from:
   ``"palm"`` (relative to the hand: lift-drop, six-dir) or ``"start"`` (from the object's
   initial world pose: ``dgb``, as DexGraspBench measures);
-* ``diagnosis`` — the module whose ``diagnose``/``summarise`` pair replays a grasp under the
-  protocol and explains its verdict (``dexaug diagnose``); protocols without one are not
+* ``diagnosis`` — the module and the ``diagnose``/``summarise`` pair that replay a grasp under
+  the protocol and explain its verdict (``dexaug diagnose``); protocols without one are not
   offered there;
 * ``fsg_hold_oversample`` — the :class:`augment.fsg.params.FsgParams` field that says how many
   grasps FSG finds per grasp wanted before ranking them by the effort this protocol's loads
@@ -23,9 +21,9 @@ it):
 from __future__ import annotations
 
 import importlib
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar, cast
 
 from sim.validate.protocols import registry
 from sim.validate.protocols.base import ClosingProtocol
@@ -41,25 +39,12 @@ DEFAULT_PROTOCOL = "lift-drop"
 
 T = TypeVar("T")
 
-#: interim ``drift_reference`` (plug-in attribute ``drift_reference: ClassVar[str]``)
-_DRIFT_REFERENCE: Mapping[str, str] = {"dgb": "start"}
-#: interim ``diagnosis`` (plug-in attribute ``diagnosis: ClassVar[str | None]``: the name of a
-#: module whose ``diagnose(validator, grasp)`` and ``summarise(diagnoses)`` do it; the interim
-#: entries also name the two functions, whose names in those modules differ)
-_DIAGNOSIS: Mapping[str, tuple[str, str, str]] = {
-    "lift-drop": ("sim.validate.diagnose", "diagnose", "summarise"),
-    "dgb": ("sim.validate.diagnose_dgb", "diagnose_dgb", "summarise_dgb"),
-}
-#: interim ``fsg_hold_oversample`` (plug-in attribute ``fsg_hold_oversample: ClassVar[str]``)
-_HOLD_OVERSAMPLE: Mapping[str, str] = {"dgb": "dgb_hold_oversample"}
-
-
-def _fact(protocol: str, attribute: str, interim: Mapping[str, T], default: T) -> T:
-    """The plug-in's ``attribute`` when it declares one, else the interim entry, else
-    ``default``; a name the registry does not know (an old dataset's) gets ``default``."""
+def _fact(protocol: str, attribute: str, default: T) -> T:
+    """The plug-in's ``attribute``; a name the registry does not know (an old dataset's) gets
+    ``default``."""
     if protocol not in registry.names():
         return default
-    return getattr(registry.get(protocol), attribute, interim.get(protocol, default))
+    return cast(T, getattr(registry.get(protocol), attribute))
 
 
 def batch_protocols() -> tuple[str, ...]:
@@ -70,7 +55,7 @@ def batch_protocols() -> tuple[str, ...]:
 
 def drift_reference(protocol: str) -> str:
     """``"palm"`` or ``"start"``: what a verdict's drift is measured against (module docstring)."""
-    return _fact(protocol, "drift_reference", _DRIFT_REFERENCE, "palm")
+    return _fact(protocol, "drift_reference", "palm")
 
 
 @dataclass(frozen=True)
@@ -87,17 +72,16 @@ class Diagnosis:
 def diagnosable() -> tuple[str, ...]:
     """The protocols with a diagnosis, in registration order (``("lift-drop", "dgb")``)."""
     return tuple(n for n in registry.names()
-                 if _fact(n, "diagnosis", _DIAGNOSIS, None) is not None)
+                 if _fact(n, "diagnosis", None) is not None)
 
 
 def diagnosis(protocol: str) -> Diagnosis:
     """``protocol``'s diagnosis (:class:`Diagnosis`); a protocol without one raises, naming the
     ones with."""
-    found = _fact(protocol, "diagnosis", _DIAGNOSIS, None)
+    found = _fact(protocol, "diagnosis", None)
     if found is None:
         raise ValueError(f"protocol {protocol!r} has no diagnosis; expected one of {diagnosable()}")
-    module, diagnose, summarise = (found, "diagnose", "summarise") if isinstance(found, str) \
-        else found
+    module, diagnose, summarise = found
     mod = importlib.import_module(module)
     return Diagnosis(module, getattr(mod, diagnose), getattr(mod, summarise))
 
@@ -105,7 +89,7 @@ def diagnosis(protocol: str) -> Diagnosis:
 def hold_oversample(params: FsgParams, protocol: str) -> float:
     """How many grasps FSG finds per grasp wanted before ranking by ``protocol``'s loads (a
     factor on n): the ``FsgParams`` field the protocol names (module docstring)."""
-    return float(getattr(params, _fact(protocol, "fsg_hold_oversample", _HOLD_OVERSAMPLE,
+    return float(getattr(params, _fact(protocol, "fsg_hold_oversample",
                                        "hold_oversample")))
 
 

@@ -95,6 +95,15 @@ class Protocol(ABC):
     section: ClassVar[str | None] = None
     #: whether its stages close through the grasp's touching stage (sim.validate.stages)
     closes_through_touch: ClassVar[bool] = False
+    #: what a verdict's displacement and rotation are measured against: "palm" (relative to
+    #: the hand) or "start" (the object's initial world pose, as DexGraspBench measures)
+    drift_reference: ClassVar[str] = "palm"
+    #: (module, diagnose function, summarise function) that replay a grasp under it and
+    #: explain its verdict (``dexaug diagnose``); None: it is not offered there
+    diagnosis: ClassVar[tuple[str, str, str] | None] = None
+    #: the ``augment.fsg.params.FsgParams`` field saying how many grasps FSG finds per grasp
+    #: wanted before ranking them by the effort its loads need
+    fsg_hold_oversample: ClassVar[str] = "hold_oversample"
 
     def params(self, config: ValidateConfig) -> Any:
         """Its section of ``config`` (None when it has none)."""

@@ -40,6 +40,9 @@ class Dgb(Protocol):
     name = "dgb"
     section = "dgb"
     closes_through_touch = True
+    drift_reference = "start"
+    diagnosis = ("sim.validate.diagnose_dgb", "diagnose_dgb", "summarise_dgb")
+    fsg_hold_oversample = "dgb_hold_oversample"   # the benchmark's loads are light ones
 
     def build_scene(self, bench: Bench) -> Scene:
         p = bench.config.dgb

@@ -35,6 +35,7 @@ class LiftDrop(ClosingProtocol):
     name = "lift-drop"
     section = "lift_drop"
     takes_gravity_dir = True
+    diagnosis = ("sim.validate.diagnose", "diagnose", "summarise")
 
     def physics(self, config: ValidateConfig) -> PhysicsOptions:
         lift = config.lift_drop
