@@ -25,6 +25,10 @@ Layout (one group per object, with the reference implementation's column names `
     existed reads without it), ``stages_made_by`` (N) strings: how they were made ("dexaug" contact
     targets, "bodex", "dgb-rule", "given"),
     ``closing`` (N) strings: "free" or "pinned" (the object held while the fingers closed);
+    ``stopped_early`` (N) strings: where a protocol stopped once the verdict was fixed (e.g.
+    "after push +x: slipped", six-dir; :mod:`sim.validate.six_dir`), "" when it ran to its end:
+    its ``displacement_m`` / ``rotation_rad`` are then NaN, not a smaller worst drift (a file
+    written before it existed reads without it);
     ``demo_id`` (N) strings.
     Attributes (provenance): the writer's (``hand``, ``seed``, options, configs) and, stamped
     by :func:`save` where missing, ``versions``, ``code_version``, ``asset_sha256`` (JSON,
@@ -149,6 +153,7 @@ def from_fsg(grasps: Sequence[Any], joint_names: Sequence[str], finger_names: Se
         "touch_pose": np.full((n, len(joint_names)), np.nan),
         "stages_made_by": np.array([""] * n, dtype=object),
         "closing": np.array([""] * n, dtype=object),
+        "stopped_early": np.array([""] * n, dtype=object),
     }
     pts, nrm, fin, off = [], [], [], [0]
     for g in grasps:
@@ -174,6 +179,7 @@ def from_fsg(grasps: Sequence[Any], joint_names: Sequence[str], finger_names: Se
                 cols["touch_pose"][i] = r.touch
             cols["stages_made_by"][i] = r.squeeze_convention or ""
             cols["closing"][i] = r.closing or ""
+            cols["stopped_early"][i] = r.stopped_early or ""
     table = ObjectTable(cols, tuple(joint_names), tuple(fingers), dict(attrs or {}))
     if validation is not None and split_rejected:
         keep = cols["passed"]

@@ -21,7 +21,7 @@ __all__ = ["STR_COLUMNS", "ObjectTable", "brief", "concat_tables", "grasp_count"
            "grasp_stage_poses", "grasps_of", "select_rows", "with_rejected"]
 
 #: per-grasp columns stored as strings
-STR_COLUMNS = ("failure", "demo_id", "stages_made_by", "closing")
+STR_COLUMNS = ("failure", "demo_id", "stages_made_by", "closing", "stopped_early")
 
 
 @dataclass

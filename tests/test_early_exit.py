@@ -117,7 +117,8 @@ def test_dgb_early_exit_keeps_every_result_and_saves_steps(shadow: Hand, steps: 
 
 
 def test_six_dir_stops_after_the_first_slip_with_the_same_verdict(shadow: Hand,
-                                                                  steps: list[int]) -> None:
+                                                                  steps: list[int],
+                                                                  tmp_path: Path) -> None:
     vs = _validators(shadow, "005_tomato_soup_can", "six_dir")
     holds = next(r.grasp for r in load_reference_grasps(shadow) if r.object == "005_tomato_soup_can")
     for name, grasp, slips_in in (("holds", holds, None), ("slips first", CAN_SLIPS_FIRST, "+x"),
@@ -138,8 +139,24 @@ def test_six_dir_stops_after_the_first_slip_with_the_same_verdict(shadow: Hand,
         assert off.stopped_early is None and not math.isnan(off.displacement_m)
         assert (on.n_contacts, on.epsilon, on.penetration_m) == (off.n_contacts, off.epsilon,
                                                                  off.penetration_m)
+        assert _stored_stop(shadow, grasp, on, tmp_path) == on.stopped_early   # a dataset says so
         # each skipped push is a restore and 2 s of stepping (500 steps at 4 ms)
         assert n_off - n_on >= 500 * (6 - len(run)), (name, n_on, n_off)
+
+
+def _stored_stop(hand: Hand, grasp: Grasp, result: ValidationResult, tmp_path: Path) -> str:
+    """``stopped_early`` of ``grasp`` validated as ``result``, written by the pipeline's dataset
+    writer and read back: NaN drifts in a dataset must say why."""
+    from augment import dataset
+    from augment.fsg.result import FsgGrasp
+
+    fg = FsgGrasp(grasp=grasp, fingers=tuple(hand.finger_names), contact_points=np.zeros((0, 3)),
+                  contact_normals=np.zeros((0, 3)), contact_finger=np.zeros(0, int),
+                  ws_index=(), face_index=(), epsilon=0.0, volume=0.0)
+    table = dataset.from_fsg([fg], hand.joint_names, hand.finger_names, [result],
+                             split_rejected=False)
+    dataset.save(tmp_path / "grasps.h5", {"object": table})
+    return str(dataset.load(tmp_path / "grasps.h5")["object"].columns["stopped_early"][0])
 
 
 @pytest.mark.parametrize("section", ["six_dir", "dgb"])
