@@ -38,6 +38,7 @@ from benchmarks.record import write_record
 from sim.envs.grasp_env import episode_actions, grasp_env, run_actions
 from sim.episodes.replay import max_joint_error, replay
 from sim.episodes.rollout import rollout
+from sim.hand.config import default_hand_name
 from sim.hand.model import Hand
 from sim.paths import REPO_ROOT
 from sim.validate.validator import Validator
@@ -69,7 +70,7 @@ def main() -> None:
         name, table = _augmented(args.demo, args.n, Path(tmp))
     grasps = grasps_of(table, args.n)
     stored = [bool(p) for p in table["passed"][:len(grasps)]]
-    hand = Hand.load(str(table.attrs.get("hand", "shadow_right")))
+    hand = Hand.load(str(table.attrs.get("hand", default_hand_name())))
     validator = Validator(hand, load_object(name))
     fresh = Validator(hand, load_object(name)).scene("lift-drop")   # a model of its own
 

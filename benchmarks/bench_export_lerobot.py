@@ -12,9 +12,9 @@ then:
   against the episodes' arrays (bit for bit), and the actions replayed from the dataset alone
   in a freshly built model: the largest joint error (the issue's acceptance: ≤ 1e-6 rad);
 - with ``--lerobot-python PY`` (a venv with LeRobot, outside the project's), loads the folder
-  with LeRobot's own ``LeRobotDataset`` in that interpreter (this script again, in its
-  ``--check-lerobot`` mode, which imports nothing of dexaug) and compares its frames and
-  actions with the episodes'.
+  with LeRobot's own ``LeRobotDataset`` in that interpreter
+  (``benchmarks/outside/lerobot_reader.py``, which imports nothing of dexaug) and compares
+  its frames and actions with the episodes'.
 
 Writes ``benchmarks/measured/export_lerobot/<stamp>.json`` through
 :func:`benchmarks.record.write_record`. Usage: ``.venv/bin/python
@@ -36,53 +36,8 @@ from typing import Any
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def check_lerobot(root: Path, expected: Path) -> dict[str, Any]:
-    """In LeRobot's venv: ``LeRobotDataset`` on ``root``, its frames against ``expected``
-    (an .npz of the episodes' ``observation.state``, ``action``, ``episode_index`` rows).
-    Its table holds float64 exactly; its items are torch tensors (float32 of the same)."""
-    import importlib.metadata
-
-    from lerobot.datasets.lerobot_dataset import LeRobotDataset
-
-    t0 = time.perf_counter()
-    ds = LeRobotDataset("dexaug/bench", root=root)
-    load_s = time.perf_counter() - t0
-    want = np.load(expected)
-    table = ds.hf_dataset.with_format("arrow")[:]   # the frames LeRobot loaded, as stored
-    out: dict[str, Any] = {"lerobot": importlib.metadata.version("lerobot"),
-                           "torch": importlib.metadata.version("torch"),
-                           "codebase_version": ds.meta.info["codebase_version"],
-                           "episodes": ds.num_episodes, "frames": len(ds), "fps": ds.fps,
-                           "load_s": load_s}
-    for k in ("observation.state", "action", "episode_index"):
-        col = table[k].combine_chunks()
-        got = (col.to_numpy() if k == "episode_index"
-               else col.flatten().to_numpy().reshape(len(col), -1))
-        out[f"{k}_table_equal"] = bool(got.shape == want[k].shape and np.array_equal(got, want[k]))
-    step = max(len(ds) // 50, 1)
-    items = range(0, len(ds), step)
-    out["items_checked"] = len(items)
-    out["items_equal_float32"] = all(
-        np.array_equal(ds[i]["action"].numpy(), want["action"][i].astype(np.float32))
-        and np.array_equal(ds[i]["observation.state"].numpy(),
-                           want["observation.state"][i].astype(np.float32))
-        and int(ds[i]["episode_index"]) == int(want["episode_index"][i]) for i in items)
-    out["task"] = ds[0]["task"]
-    # as a policy is trained: chunks of the next actions (LeRobot checks the timestamps
-    # against fps for this), through a torch DataLoader
-    import torch
-
-    dt = 1.0 / ds.fps
-    chunked = LeRobotDataset("dexaug/bench", root=root,
-                             delta_timestamps={"action": [0.0, dt, 2 * dt, 3 * dt]})
-    batch = next(iter(torch.utils.data.DataLoader(chunked, batch_size=8, shuffle=False)))
-    out["action_chunk_shape"] = list(batch["action"].shape)
-    out["action_chunk_equal_float32"] = bool(np.array_equal(
-        batch["action"][0].numpy(), want["action"][:4].astype(np.float32)))
-    out["stats_keys"] = sorted(ds.meta.stats["action"])
-    return out
+#: LeRobot's side of the check, run by LeRobot's own interpreter (``--lerobot-python``)
+LEROBOT_READER = ROOT / "benchmarks" / "outside" / "lerobot_reader.py"
 
 
 def _augmented(demo: str, n: int, out: Path) -> Path:
@@ -156,7 +111,7 @@ def run(args: argparse.Namespace, tmp: Path) -> None:
         for i, ep in enumerate(kept):   # the episodes' own arrays, not the export's reading
             sel = slice(data.episodes[i]["dataset_from_index"], data.episodes[i]["dataset_to_index"])
             assert np.array_equal(data.frames["action"][sel][:, :len(ep.actuator_names)], ep.ctrl)
-        proc = subprocess.run([args.lerobot_python, __file__, "--check-lerobot",
+        proc = subprocess.run([args.lerobot_python, str(LEROBOT_READER),
                                str(tmp / "lerobot"), str(tmp / "expected.npz")],
                               capture_output=True, text=True, timeout=1200,
                               env={"PATH": "/usr/bin:/bin", "HF_HUB_OFFLINE": "1",
@@ -182,12 +137,7 @@ def main() -> None:
     ap.add_argument("--dataset", help="a grasps.h5 to export instead of augmenting the demo")
     ap.add_argument("--lerobot-python", help="a Python with LeRobot installed: load the export "
                     "with its LeRobotDataset there")
-    ap.add_argument("--check-lerobot", nargs=2, metavar=("ROOT", "EXPECTED"),
-                    help=argparse.SUPPRESS)
     args = ap.parse_args()
-    if args.check_lerobot:
-        print(json.dumps(check_lerobot(Path(args.check_lerobot[0]), Path(args.check_lerobot[1]))))
-        return
     with tempfile.TemporaryDirectory() as tmp:
         run(args, Path(tmp))
 

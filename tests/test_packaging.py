@@ -30,6 +30,9 @@ except ImportError:  # pragma: no cover - pip always vendors it
 ROOT = Path(__file__).resolve().parents[1]
 CODE_DIRS = ("sim", "augment", "teleop", "dexaug", "benchmarks")
 CONSTRAINTS = ROOT / "constraints.txt"
+#: scripts run by another project's interpreter (e.g. LeRobot's reader in LeRobot's venv):
+#: their imports are that venv's dependencies, not this project's
+OUTSIDE = ROOT / "benchmarks" / "outside"
 
 # Import names of distributions that need not be installed here (the `gpu` extra), which
 # packages_distributions() therefore cannot map.
@@ -70,6 +73,8 @@ def _imported_tops() -> dict[str, set[str]]:
     found: dict[str, set[str]] = {}
     for d in CODE_DIRS:
         for path in sorted((ROOT / d).rglob("*.py")):
+            if OUTSIDE in path.parents:
+                continue
             tree = ast.parse(path.read_text(), str(path))
             for node in ast.walk(tree):
                 names: list[str] = []

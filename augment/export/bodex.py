@@ -16,7 +16,7 @@ Layout — DexGraspBench (GitHub JYChen18/DexGraspBench @ 1e7a5a6): its evaluati
                        LFJ5..LFJ1 THJ5..THJ1 (radians)
 
 The palm body and that joint order are the hand's declaration, ``[formats.bodex]`` in
-``configs/hands/shadow_right/hand.toml`` (:class:`~augment.export.foreign.ForeignHand`); a hand
+the Shadow Hand's ``configs/hands/<hand>/hand.toml`` (:class:`~augment.export.foreign.ForeignHand`); a hand
 without one is refused.
 
 Its Shadow asset is Menagerie's right hand without forearm and wrist (``assets/hand/README.md``):

@@ -17,7 +17,7 @@ appends to a file by resizing. The root link of their ``assets/robot/srh/urdf/sr
 Menagerie ``rh_palm`` body's (same finger joint origins; ``../shared/assets/handdata/
 fsg_keyframes/README.md``); their reader puts that link at ``palm_pose`` with no extra rotation
 for ``srh`` (scipy ``from_quat([qx, qy, qz, qw])``) and sets the joints by name in the order
-above (the hand's declaration: ``[formats.fsg]`` in ``configs/hands/shadow_right/hand.toml``;
+above (the hand's declaration: ``[formats.fsg]`` in the Shadow Hand's ``configs/hands/<hand>/hand.toml``;
 a hand without one is refused). So ``palm_pose`` is the pose of ``rh_palm`` — not dexaug's
 frame_palm, which is ``rh_palm`` turned 180° about z with its origin on the palm face — and it
 is computed from frame_palm by forward kinematics of our hand

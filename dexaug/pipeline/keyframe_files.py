@@ -21,7 +21,7 @@ does not care which format it came from. Units: metres, radians, quaternions w x
 srh.txt names no hand and no joints: its 22 values are the FSG authors' Shadow Hand's finger
 joints (no wrist) in their model's order. That is the hand's knowledge, so it is declared in the
 hand's folder: ``[formats.srh_txt]`` (:data:`SRH_FORMAT`) in
-``configs/hands/shadow_right/hand.toml`` gives the body the qpos places and the joint order
+the Shadow Hand's ``configs/hands/<hand>/hand.toml`` gives the body the qpos places and the joint order
 (:func:`sim.hand.config.hand_format`); the hand that declares it is the one the import uses, and
 a hand that declares none cannot take the file.
 """
