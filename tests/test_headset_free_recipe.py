@@ -49,7 +49,12 @@ def test_the_headset_free_recipe_records_a_demo_that_augments(tmp_path: Path) ->
         assert f"bridge object: {OBJECT}" in replay.stdout, replay.stdout
     finally:
         bridge.send_signal(signal.SIGINT)   # Ctrl-C: the recording is closed, then it exits
-        out, _ = bridge.communicate(timeout=HANG_S)
+        try:
+            out, _ = bridge.communicate(timeout=HANG_S)
+        except subprocess.TimeoutExpired:   # hung: fail, and leave no bridge behind
+            bridge.kill()
+            bridge.communicate()
+            raise
     assert bridge.returncode == 0, out
     rec = open_session(tmp_path / "r.mcap")
     assert not rec.truncated
