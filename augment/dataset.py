@@ -88,6 +88,9 @@ COLUMNS: dict[str, Any] = {
     "rotation_rad": np.float64, "penetration_m": np.float64, "sim_epsilon": np.float64,
     "pregrasp_pose": np.float64, "squeeze_pose": np.float64, "touch_pose": np.float64,
 }
+#: text columns a validation result fills: (column, ValidationResult field); None is ""
+_TEXT_FIELDS = (("stages_made_by", "squeeze_convention"), ("closing", "closing"),
+                ("stopped_early", "stopped_early"))
 _STR = h5py.string_dtype()
 _REPR_OBJECTS = 12   # objects a printed Dataset lists, one line each
 
@@ -177,9 +180,8 @@ def from_fsg(grasps: Sequence[Any], joint_names: Sequence[str], finger_names: Se
                 cols["pregrasp_pose"][i], cols["squeeze_pose"][i] = r.pregrasp, r.squeeze
             if r.touch is not None:
                 cols["touch_pose"][i] = r.touch
-            cols["stages_made_by"][i] = r.squeeze_convention or ""
-            cols["closing"][i] = r.closing or ""
-            cols["stopped_early"][i] = r.stopped_early or ""
+            for column, field in _TEXT_FIELDS:
+                cols[column][i] = getattr(r, field) or ""
     table = ObjectTable(cols, tuple(joint_names), tuple(fingers), dict(attrs or {}))
     if validation is not None and split_rejected:
         keep = cols["passed"]
