@@ -61,7 +61,7 @@ demo: $(DEMO_STAMP) gl
 test: $(TEST_STAMP) gl browser
 	$(BIN)/ruff check .
 	$(BIN)/mypy
-	$(BIN)/python -m pytest -q --durations=15
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile --durations=15
 
 # The timing-sensitive tests again with the other cores busy (scripts/under_load.sh).
 test-load: $(TEST_STAMP) gl

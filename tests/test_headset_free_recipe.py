@@ -59,14 +59,20 @@ def test_the_headset_free_recipe_records_a_demo_that_augments(tmp_path: Path) ->
     rec = open_session(tmp_path / "r.mcap")
     assert not rec.truncated
     assert rec.counts["/hands"] > 0 and rec.counts["/contacts"] > 0
-    (demo,) = extract_demos(tmp_path / "r.mcap")
+    # one demo on a quiet machine; under `pytest -n 2` beside other tests the same replay once
+    # gave two (the bridge runs on wall time, so load changes the recording): each must be a
+    # demo of the object with the thumb, and the dataset may come from any of them
+    demos = extract_demos(tmp_path / "r.mcap")
+    assert demos, "the bridge's recording gave no demo"
     # the recording started on the bridge's default object; the replay chose the session's,
-    # and the demo names the object it grasped, not the one in the metadata
-    assert rec.metadata["object"] != OBJECT and demo.object == OBJECT
-    assert "thumb" in demo.fingers and len(demo.fingers) >= 2, demo.fingers
+    # and a demo names the object it grasped, not the one in the metadata
+    assert rec.metadata["object"] != OBJECT
+    for demo in demos:
+        assert demo.object == OBJECT
+        assert "thumb" in demo.fingers and len(demo.fingers) >= 2, demo.fingers
     aug = run_dexaug("augment", "r.mcap", "--n", "5", "--budget", str(HANG_S), "--gallery", "0",
                   "--out", "datasets", cwd=tmp_path)
     assert aug.returncode == 0, aug.stdout + aug.stderr
     (h5,) = (tmp_path / "datasets").glob("*/grasps.h5")
     table = dataset.load(h5)[OBJECT]
-    assert len(table) > 0 and set(table["demo_id"]) == {demo.id}
+    assert len(table) > 0 and set(table["demo_id"]) <= {demo.id for demo in demos}
