@@ -59,11 +59,13 @@ def _generate_args(p: argparse.ArgumentParser) -> None:
                    "an existing one with grasps is refused unless --append; default %(default)s")
     p.add_argument("--append", action="store_true", help="add to an existing --out (rows that "
                    "exactly repeat its grasps are refused); default: off")
-    p.add_argument("--mode", choices=("fingertip", "power", "auto"), default="fingertip",
+    p.add_argument("--mode", choices=("fingertip", "power", "auto"), default=None,
                    help="fingertip: FSG (paper §4); power: palm and whole fingers around the "
                    "object, for objects fingertips cannot lift (augment.power; no --demo, "
                    "--fingers or --table); auto: fingertip, then power grasps too when fewer "
-                   "than [power] auto_below of the fingertip grasps pass; default %(default)s")
+                   "than [power] auto_below of the fingertip grasps pass (never with --demo, "
+                   "--fingers or --table, which ask for fingertips); default: auto, or "
+                   "fingertip with --validate none (auto decides from the validation)")
     generation_args(p)
 
 
@@ -77,18 +79,20 @@ def generate_cmd(args: argparse.Namespace, console: Console) -> int:
     the side table "rejected" with their reason. A shortfall (fewer grasps than --n within
     --budget) is reported, never a hang. --mode power makes whole-hand grasps instead
     (augment.power: palm on the object, every finger closed onto it in simulation); --mode
-    auto makes fingertip grasps and, when fewer than [power] auto_below of them pass, power
-    grasps too, both in the same table (attribute ``modes_run``). Exit status 3: the dataset
-    was written with fewer than half of --n grasps; 2: an input or --out that cannot be used
-    (checked before any work).
+    auto, the default unless --validate none (issue #54: a user who names only the object gets
+    the best mode), makes fingertip grasps and, when fewer than [power] auto_below of them
+    pass, power grasps too, both in the same table (attribute ``modes_run``); it says which.
+    Exit status 3: the dataset was written with fewer than half of --n grasps; 2: an input or
+    --out that cannot be used (checked before any work).
     """
     from augment import dataset
-    from augment.power import load_power_params
     from dexaug.pipeline.demos import resolve_demo
     from sim.hand.model import Hand
     from sim.validate.batch import default_workers
     from sim.world.objects import load_object
 
+    if args.mode is None:   # the best a user can get unasked: auto needs the validation
+        args.mode = "fingertip" if args.validate == "none" else "auto"
     if args.mode == "power" and (args.demo or args.fingers or args.table is not None):
         raise UsageError("--mode power places the whole hand: it takes no --demo, --fingers or "
                          "--table")
@@ -114,16 +118,11 @@ def generate_cmd(args: argparse.Namespace, console: Console) -> int:
             return _generate_and_validate(args, mode, hand, obj, demo, workers, backend, bar)
 
         runs = [(mode := "power" if args.mode == "power" else "fingertip", *run(mode))]
-        if args.mode == "auto":
-            rate = _pass_rate(runs[0][2])
-            below = load_power_params(hand_file=hand.config.file).auto_below
-            if rate < below and demo is None and not args.fingers and args.table is None:
-                console.print(f"fingertip grasps: {100 * rate:.0f} % pass {args.validate} "
-                              f"(below {100 * below:.0f} %): adding power grasps")
-                runs.append(("power", *run("power")))
+        if args.mode == "auto" and _auto_adds_power(console, args, hand, runs[0][2]):
+            runs.append(("power", *run("power")))
     grasps = [g for _, res, _ in runs for g in res.grasps]
-    results = (None if any(r is None for _, _, r in runs)
-               else [x for _, _, r in runs for x in r])
+    validated = [r for _, _, r in runs if r is not None]   # every run, or none (--validate)
+    results = [x for r in validated for x in r] if len(validated) == len(runs) else None
     table = dataset.from_fsg(grasps, hand.joint_names, hand.finger_names, results,
                              demo_id=demo.id if demo else "",
                              attrs=_generate_provenance(args, hand.name, backend, demo,
@@ -160,6 +159,26 @@ def _generate_and_validate(args: argparse.Namespace, mode: str, hand: Hand, obj:
                               args.validate, workers=workers,
                               squeeze_convention=args.squeeze_convention,
                               progress=lambda k: bar.update(vt, completed=k), backend=backend)
+
+
+def _auto_adds_power(console: Console, args: argparse.Namespace, hand: Hand,
+                     results: list[ValidationResult] | None) -> bool:
+    """--mode auto's choice after the fingertip run, said on the console: power grasps too
+    when fewer than [power] auto_below of the fingertip grasps pass, unless --demo, --fingers
+    or --table ask for fingertip grasps."""
+    from augment.power import load_power_params
+
+    rate = _pass_rate(results)
+    below = load_power_params(hand_file=hand.config.file).auto_below
+    asked = bool(args.demo) or bool(args.fingers) or args.table is not None
+    verdict = (f"fingertip grasps: {100 * rate:.0f} % pass {args.validate} (power grasps are "
+               f"added below {100 * below:.0f} %)")
+    if rate < below and not asked:
+        console.print(f"{verdict}: adding power grasps")
+        return True
+    console.print(f"{verdict}: fingertip only"
+                  + (" (--demo, --fingers or --table ask for fingertips)" if rate < below else ""))
+    return False
 
 
 def _pass_rate(results: list[ValidationResult] | None) -> float:
