@@ -13,7 +13,7 @@ DEMO_STAMP := $(VENV)/.installed-demo
 TEST_STAMP := $(VENV)/.installed-test
 export MUJOCO_GL ?= egl
 
-.PHONY: demo test test-load lint bench bench-headline bench-headline-quick clean gl browser
+.PHONY: demo test test-fast test-load lint bench bench-headline bench-headline-quick clean gl browser docs
 
 # The virtual environment itself (kept if it is already there), for both installs below.
 define make-venv
@@ -63,6 +63,11 @@ test: $(TEST_STAMP) gl browser
 	$(BIN)/mypy
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile --durations=15
 
+# The quick tier (~1 min on 2 cores): every test but those marked slow (files over ~5 s) or
+# browser (headless Chromium); for the edit-test loop. `make test` is what CI runs.
+test-fast: $(TEST_STAMP) gl
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile -m "not slow and not browser" --durations=5
+
 # The timing-sensitive tests again with the other cores busy (scripts/under_load.sh).
 test-load: $(TEST_STAMP) gl
 	bash scripts/under_load.sh
@@ -87,6 +92,11 @@ bench-headline: $(DEMO_STAMP) gl
 # figure still computes from what they write. Changes no file.
 bench-headline-quick: $(DEMO_STAMP) gl
 	$(BIN)/python benchmarks/headline.py run --quick
+
+# The guides as a site (mkdocs.yml) in site/: open site/index.html. Strict: a broken link or
+# anchor, or a page outside the nav, fails the build (tests/test_docs_site.py builds it too).
+docs: $(TEST_STAMP)
+	$(BIN)/python -m mkdocs build --strict
 
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache

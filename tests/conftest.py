@@ -99,6 +99,15 @@ needs_ycb = pytest.mark.skipif(ycb_root(required=False) is None,
                                reason=f"no YCB objects (DEXAUG_YCB_ROOT or {SHARED_ASSETS}/ycb)")
 
 
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Mark every test that uses the headless browser (the ``chromium`` fixture, directly or
+    through another fixture) ``browser``, so ``make test-fast`` can leave it out without each
+    module having to remember the marker."""
+    for item in items:
+        if "chromium" in getattr(item, "fixturenames", ()):
+            item.add_marker(pytest.mark.browser)
+
+
 @pytest.fixture(scope="session")
 def shadow():
     from sim.hand.model import Hand

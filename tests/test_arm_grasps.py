@@ -32,7 +32,7 @@ from sim.world.objects import load_object
 from sim.world.resting import rest_placement, resting_poses
 from tests.conftest import needs_menagerie, needs_ycb
 
-pytestmark = [needs_menagerie, needs_ycb, pytest.mark.timeout(300)]
+pytestmark = [pytest.mark.slow, needs_menagerie, needs_ycb, pytest.mark.timeout(300)]
 
 REPO = Path(__file__).resolve().parents[1]
 DEMO = REPO / "recordings" / "demos" / "005_tomato_soup_can.json"

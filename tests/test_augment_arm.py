@@ -34,6 +34,8 @@ from sim.paths import REPO_ROOT
 from tests.conftest import needs_menagerie, needs_ycb
 from tests.fake_results import arm_file_numbers, empty_dataset
 
+pytestmark = pytest.mark.slow
+
 DICE = REPO_ROOT / "recordings" / "demos" / "062_dice.json"
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 from rich.console import Console
 
 from augment import dataset
@@ -17,7 +18,7 @@ from teleop.record.demos import extract_demos
 from tests.conftest import HANG_S, needs_menagerie, needs_ycb, wait_for
 from tests.test_demo_extraction import OBJECT, _record
 
-pytestmark = [needs_menagerie, needs_ycb]
+pytestmark = [pytest.mark.slow, needs_menagerie, needs_ycb]
 
 
 def test_a_live_recording_is_augmented_into_a_dataset(tmp_path: Path) -> None:

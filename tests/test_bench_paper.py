@@ -4,8 +4,12 @@ from __future__ import annotations
 
 import math
 
+import pytest
+
 from dexaug.bench_paper import Row, markdown, measure, paper_figures
 from tests.conftest import needs_menagerie, needs_ycb
+
+pytestmark = pytest.mark.slow
 
 
 def test_paper_figures_match_the_paper() -> None:

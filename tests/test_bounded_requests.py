@@ -24,6 +24,8 @@ from sim.paths import REPO_ROOT, SHARED_ASSETS
 from tests.conftest import SOON_S, needs_menagerie, needs_ycb, wait_for, wait_for_queryable
 from tests.dashboard_http import post_json
 
+pytestmark = pytest.mark.slow
+
 DICE = REPO_ROOT / "recordings" / "demo_062_dice.mcap"
 CAPTURE = SHARED_ASSETS / "handdata" / "quest3_webxr" / "cap.min.js"
 

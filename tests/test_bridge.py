@@ -20,7 +20,8 @@ from teleop.messages import JOINT_INDEX, HandFrame, encode
 from tests.conftest import SOON_S, wait_for, wait_for_match, wait_for_queryable
 
 CAPTURE = SHARED_ASSETS / "handdata" / "quest3_webxr" / "cap.min.js"
-pytestmark = pytest.mark.skipif(not CAPTURE.is_file(), reason=f"no hand capture {CAPTURE}")
+pytestmark = [pytest.mark.slow,
+              pytest.mark.skipif(not CAPTURE.is_file(), reason=f"no hand capture {CAPTURE}")]
 
 
 @pytest.fixture(scope="module")

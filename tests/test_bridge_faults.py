@@ -30,7 +30,7 @@ from teleop import keys
 from teleop.messages import HandFrame, encode
 from tests.conftest import HANG_S, SOON_S, needs_menagerie, wait_for, wait_for_match
 
-pytestmark = needs_menagerie
+pytestmark = [pytest.mark.slow, needs_menagerie]
 
 HAND, OBJECT, RIG = "shadow_right", "box", "faults"
 REPO = Path(__file__).resolve().parents[1]

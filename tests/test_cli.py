@@ -13,6 +13,8 @@ from dexaug.cli import build_parser, main
 from sim.world.render import gl_available
 from tests.conftest import needs_menagerie, needs_ycb
 
+pytestmark = pytest.mark.slow
+
 
 def test_help_lists_every_subcommand(capsys) -> None:
     with pytest.raises(SystemExit):

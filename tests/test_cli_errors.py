@@ -21,6 +21,8 @@ import pytest
 
 from tests.conftest import HANG_S, SOON_S, needs_menagerie, needs_ycb, sigint_as_a_terminal_gives_it, wait_for
 
+pytestmark = pytest.mark.slow
+
 REPO = Path(__file__).resolve().parents[1]
 
 #: exit status and stderr line of a command run with ``no_zenoh`` that opened a zenoh session

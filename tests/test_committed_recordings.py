@@ -20,6 +20,8 @@ from teleop.record.schemas import TOPIC_HANDS
 from teleop.record.session import open_session
 from tests.conftest import needs_menagerie, needs_ycb, run_dexaug
 
+pytestmark = pytest.mark.slow
+
 REPO = Path(__file__).resolve().parents[1]
 RECORDINGS = sorted((REPO / "recordings").glob("*.mcap"))
 BRIDGE_SAMPLE = REPO / "recordings" / "bridge_043_phillips_screwdriver.mcap"

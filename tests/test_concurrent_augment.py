@@ -22,6 +22,8 @@ import pytest
 from sim.paths import REPO_ROOT
 from tests.conftest import HANG_S, SOON_S, needs_menagerie, needs_ycb, wait_for
 
+pytestmark = pytest.mark.slow
+
 DICE = REPO_ROOT / "recordings" / "demo_062_dice.mcap"
 
 #: one run: argv = session, out, tag, gate folder. Marks ``<tag>.computing`` when its FSG stage

@@ -35,6 +35,8 @@ from tests.conftest import HANG_S, SOON_S, needs_menagerie, needs_ycb, wait_for
 from tests.dashboard_http import post_json
 from tests.fake_results import arm_file_numbers, fake_result
 
+pytestmark = pytest.mark.slow
+
 DICE = REPO_ROOT / "recordings" / "demo_062_dice.mcap"
 RAW = REPO_ROOT / "recordings" / "synth_005_tomato_soup_can.mcap"
 

@@ -14,12 +14,16 @@ import json
 import urllib.request
 from pathlib import Path
 
+import pytest
+
 from dexaug.dashboard.server import Dashboard, DashboardConfig
 from dexaug.pipeline.options import AugmentOptions
 from tests.browser import artifact_path, new_page
 from tests.conftest import SOON_S
 from tests.dashboard_http import post_json
 from tests.test_dashboard import _get, _last_job_in, _sessions_dir
+
+pytestmark = pytest.mark.slow
 
 
 def _summary(folder: Path, demo: str, generated: int, passed: int) -> None:

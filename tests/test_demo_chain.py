@@ -14,6 +14,8 @@ import pytest
 from dexaug.cli import main
 from tests.conftest import needs_menagerie, needs_ycb
 
+pytestmark = pytest.mark.slow
+
 
 @needs_menagerie
 @needs_ycb

@@ -25,7 +25,7 @@ from tests.conftest import needs_menagerie, needs_ycb
 
 HUMAN = REPO_ROOT / "recordings" / "demos" / "human"
 DEMO = HUMAN / "062_dice.json"
-pytestmark = [needs_menagerie, needs_ycb]
+pytestmark = [pytest.mark.slow, needs_menagerie, needs_ycb]
 #: grasps asked of each demo, and the 3/4 of them it must give
 N, MIN_KEPT = 64, 48
 

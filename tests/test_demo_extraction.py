@@ -27,7 +27,7 @@ from teleop.record.demos import DemoError, extract_demos
 from teleop.record.session import open_session
 from tests.conftest import needs_menagerie, needs_ycb
 
-pytestmark = [needs_menagerie, needs_ycb]
+pytestmark = [pytest.mark.slow, needs_menagerie, needs_ycb]
 
 OBJECT = "004_sugar_box"
 SCRIPTED = REPO_ROOT / "recordings" / "demo_005_tomato_soup_can.mcap"

@@ -32,7 +32,7 @@ from sim.validate.result import Failure
 from tests.conftest import needs_menagerie, needs_ycb
 
 REFERENCE = REPO_ROOT.parent / "shared" / "reference" / "dexgraspbench" / "grasps.jsonl"
-pytestmark = [needs_menagerie, needs_ycb,
+pytestmark = [pytest.mark.slow, needs_menagerie, needs_ycb,
               pytest.mark.skipif(not REFERENCE.is_file(), reason=f"no {REFERENCE}")]
 
 

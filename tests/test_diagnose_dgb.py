@@ -23,7 +23,7 @@ from sim.world.objects import load_object
 from tests.conftest import needs_menagerie, needs_ycb, without_drift_correction, without_settled_modes
 from tests.test_free_modes import BOWL_GRASP
 
-pytestmark = [needs_menagerie, needs_ycb]
+pytestmark = [pytest.mark.slow, needs_menagerie, needs_ycb]
 
 
 @pytest.fixture(scope="module")

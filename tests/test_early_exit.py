@@ -40,7 +40,7 @@ from sim.world.objects import load_object
 from tests.conftest import needs_menagerie, needs_ycb
 from tests.test_rehearsal import SUGAR_BOX_GRASP
 
-pytestmark = [needs_menagerie, needs_ycb]
+pytestmark = [pytest.mark.slow, needs_menagerie, needs_ycb]
 
 #: FSG grasps of 005_tomato_soup_can (seed 0, the manual workspace; frame_palm in the object
 #: frame, metres, wxyz; 24 joints) that slip in six-dir: under +x, the first push, and under

@@ -24,6 +24,8 @@ from sim.validate.batch import SceneEffort
 from sim.validate.loads import hold_loads
 from tests.conftest import needs_menagerie, needs_ycb
 
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def bowl_setup(shadow):

@@ -23,7 +23,7 @@ from sim.validate.validator import Validator
 from sim.world.objects import load_object
 from tests.conftest import needs_menagerie, needs_ycb
 
-pytestmark = [needs_menagerie, needs_ycb]
+pytestmark = [pytest.mark.slow, needs_menagerie, needs_ycb]
 
 #: committed demos whose grasps, moved along the palm normal, pass and fail for every reason
 DEMOS = ("062_dice", "004_sugar_box")

@@ -24,7 +24,7 @@ from tests.conftest import needs_menagerie
 REFERENCE = Path(__file__).resolve().parents[2] / "shared" / "reference" / "dexgraspbench" / \
     "grasps.jsonl"
 
-pytestmark = [needs_menagerie,
+pytestmark = [pytest.mark.slow, needs_menagerie,
               pytest.mark.skipif(not REFERENCE.exists(), reason="no shared DGB reference file")]
 
 

@@ -35,7 +35,7 @@ DGB_JOINTS = ["rh_FFJ4", "rh_FFJ3", "rh_FFJ2", "rh_FFJ1", "rh_MFJ4", "rh_MFJ3", 
 #: where DGB's Shadow asset puts rh_palm under its floating root: <body name="rh_palm" pos=…>
 DGB_PALM_IN_ROOT = np.array([0.0, 0.0, 0.034])
 
-pytestmark = [needs_menagerie,
+pytestmark = [pytest.mark.slow, needs_menagerie,
               pytest.mark.skipif(not REFERENCE.exists(), reason="no shared DGB reference file")]
 
 

@@ -39,7 +39,7 @@ THEIR_JOINTS = ["rh_FFJ4", "rh_FFJ3", "rh_FFJ2", "rh_FFJ1", "rh_MFJ4", "rh_MFJ3"
                 "rh_LFJ3", "rh_LFJ2", "rh_LFJ1", "rh_THJ5", "rh_THJ4", "rh_THJ3", "rh_THJ2",
                 "rh_THJ1"]
 
-pytestmark = [needs_menagerie,
+pytestmark = [pytest.mark.slow, needs_menagerie,
               pytest.mark.skipif(not REFERENCE.exists(), reason="no shared DGB reference file")]
 
 

@@ -36,7 +36,7 @@ from teleop.record import schemas
 from tests.conftest import SOON_S, needs_menagerie
 from tests.test_bridge import CAPTURE, _pinch_offset, _record, _Rig, frames  # noqa: F401
 
-pytestmark = [needs_menagerie,
+pytestmark = [pytest.mark.slow, needs_menagerie,
               pytest.mark.skipif(not CAPTURE.is_file(), reason=f"no hand capture {CAPTURE}")]
 
 LAYOUT = REPO_ROOT / "configs" / "foxglove" / "dexaug_layout.json"

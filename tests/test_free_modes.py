@@ -27,6 +27,8 @@ from sim.validate.validator import Validator
 from sim.world.objects import load_object
 from tests.conftest import needs_menagerie, needs_ycb, without_rehearsal, without_settled_modes
 
+pytestmark = pytest.mark.slow
+
 #: a grasp of the authors' bowl demonstration's augmentation (frame_palm in the object frame,
 #: metres, wxyz; 24 joints): passes the benchmark at 3.3° with the free modes settled, turns
 #: 18.2° (the −x push) with the grasp's own J1 = J2 split (measured 2026-12-05)

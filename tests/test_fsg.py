@@ -34,6 +34,8 @@ from sim.validate.batch import ScenePenetration
 from sim.validate.result import ValidationResult
 from tests.conftest import needs_menagerie, needs_ycb
 
+pytestmark = pytest.mark.slow
+
 CAN = "005_tomato_soup_can"
 
 

@@ -31,6 +31,8 @@ from augment.object_cloud import ObjectCloud
 from sim.grasp import Grasp
 from sim.transforms import axis_angle_to_mat, mat_to_quat
 
+pytestmark = pytest.mark.slow
+
 SIDE_M = 0.04
 
 

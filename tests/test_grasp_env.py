@@ -21,6 +21,8 @@ from sim.world.objects import load_object
 from tests.conftest import needs_menagerie, needs_ycb
 from tests.test_episodes import shifted_grasps
 
+pytestmark = pytest.mark.slow
+
 try:   # the "envs" extra; without it only the first two tests run
     from absl.testing import absltest
     from dm_env import test_utils

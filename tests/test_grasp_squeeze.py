@@ -19,7 +19,7 @@ import pytest
 from benchmarks.bench_teleop_loop import OPERATORS
 from tests.conftest import needs_menagerie, needs_ycb
 
-pytestmark = [needs_menagerie, needs_ycb]
+pytestmark = [pytest.mark.slow, needs_menagerie, needs_ycb]
 
 OBJECT = "002_master_chef_can"
 

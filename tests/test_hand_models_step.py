@@ -25,6 +25,8 @@ from sim.world.objects import load_primitive
 from sim.world.scene import OBJECT_HOME, Scene
 from tests.conftest import needs_menagerie
 
+pytestmark = pytest.mark.slow
+
 HANDS = hand_names()
 #: each hand, those whose model comes from Menagerie skipped (saying why) where it is absent
 HAND_PARAMS = [pytest.param(name, marks=needs_menagerie if load_hand_config(name).menagerie else ())

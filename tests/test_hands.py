@@ -22,6 +22,8 @@ from sim.hand.model import Hand
 from sim.paths import REPO_ROOT
 from tests.conftest import needs_menagerie
 
+pytestmark = pytest.mark.slow
+
 HANDS = hand_names()
 OBJECT = "cylinder"   # procedural: no YCB needed, and quick to validate
 

@@ -21,13 +21,15 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from augment import dataset
 from teleop import keys
 from teleop.record.demos import extract_demos
 from teleop.record.session import open_session
 from tests.conftest import HANG_S, needs_menagerie, needs_ycb, run_dexaug, sigint_as_a_terminal_gives_it
 
-pytestmark = [needs_menagerie, needs_ycb]
+pytestmark = [pytest.mark.slow, needs_menagerie, needs_ycb]
 
 OBJECT = "043_phillips_screwdriver"
 

@@ -23,6 +23,8 @@ from sim.validate.config import ValidateConfig
 from sim.validate.loads import hold_loads
 from tests.conftest import needs_menagerie, needs_ycb
 
+pytestmark = pytest.mark.slow
+
 WEIGHT = np.array([0.0, 0.0, -5.0, 0.0, 0.0, 0.0])  # 5 N straight down
 PINCH = np.array([[-0.03, 0.0, 0.0], [0.03, 0.0, 0.0]])
 PINCH_IN = np.array([[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]])

@@ -25,6 +25,8 @@ import pytest
 from dexaug.cli import build_parser, main
 from tests.conftest import needs_menagerie, needs_ycb
 
+pytestmark = pytest.mark.slow
+
 REPO = Path(__file__).resolve().parents[1]
 DICE = REPO / "recordings" / "demo_062_dice.mcap"
 SUGAR = REPO / "recordings" / "demo_004_sugar_box.mcap"

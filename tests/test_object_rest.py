@@ -21,7 +21,7 @@ import pytest
 from teleop import keys
 from tests.conftest import needs_menagerie, needs_ycb
 
-pytestmark = needs_ycb
+pytestmark = [pytest.mark.slow, needs_ycb]
 
 HAND = "shadow_right"
 BOX, CAN = "004_sugar_box", "005_tomato_soup_can"

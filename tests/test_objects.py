@@ -24,6 +24,8 @@ from sim.world.objects import ObjectAsset, load_object
 from sim.world.primitives import PRIMITIVES
 from tests.conftest import needs_ycb
 
+pytestmark = pytest.mark.slow
+
 # full AABB edge lengths (m) and masses (kg) the primitives are meant to have
 INTENDED = {
     "box": ((0.06, 0.06, 0.10), 0.25),

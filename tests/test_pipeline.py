@@ -25,6 +25,8 @@ from teleop.record.demos import extract_demos
 from teleop.record.recorder import SessionRecorder
 from tests.conftest import HANG_S, needs_menagerie, needs_ycb, wait_for
 
+pytestmark = pytest.mark.slow
+
 CAN_SESSION = REPO_ROOT / "recordings" / "demo_005_tomato_soup_can.mcap"
 RAW_SESSION = REPO_ROOT / "recordings" / "synth_005_tomato_soup_can.mcap"
 

@@ -25,6 +25,8 @@ from sim.validate.batch import cached_validator, validate_many
 from sim.world.scene import HAND_PREFIX
 from tests.conftest import needs_menagerie, needs_ycb
 
+pytestmark = pytest.mark.slow
+
 BLEACH = "021_bleach_cleanser"
 
 

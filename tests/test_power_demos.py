@@ -18,6 +18,8 @@ import pytest
 
 from tests.conftest import needs_menagerie, needs_ycb
 
+pytestmark = pytest.mark.slow
+
 OBJECT = "004_sugar_box"
 HAND = "shadow_right"
 REPO = Path(__file__).resolve().parent.parent

@@ -26,6 +26,8 @@ from sim.validate.result import ValidationResult
 from sim.versions import code_version, describe_code_version, package_versions
 from tests.conftest import needs_menagerie
 
+pytestmark = pytest.mark.slow
+
 JOINTS = tuple(f"j{i}" for i in range(4))
 FINGERS = ("thumb", "index")
 BLOCK = "999_test_block"

@@ -26,6 +26,8 @@ from sim.validate.validator import Validator
 from sim.world.objects import load_object
 from tests.conftest import needs_ycb, without_drift_correction, without_grip_boost, without_settled_modes
 
+pytestmark = pytest.mark.slow
+
 #: a grasp of the same augmentation that holds six-dir's pushes with the squeeze sized for them
 #: (5 mm, 6°) and turns 20° out of it with the one sized for the weight
 SIX_DIR_GRASP = Grasp(

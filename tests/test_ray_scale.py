@@ -38,7 +38,7 @@ REPO = Path(__file__).resolve().parents[1]
 DEMO = REPO / "recordings" / "demos" / "005_tomato_soup_can.json"
 OPTS = AugmentOptions(n=10, seed=3, workers=1, gallery=0, validate="lift-drop")
 
-pytestmark = [needs_ycb, pytest.mark.timeout(600)]
+pytestmark = [pytest.mark.slow, needs_ycb, pytest.mark.timeout(600)]
 
 
 @pytest.fixture(scope="module")

@@ -24,6 +24,8 @@ import pytest
 from sim.paths import REPO_ROOT
 from tests.conftest import HANG_S, needs_menagerie, needs_ycb
 
+pytestmark = pytest.mark.slow
+
 #: the front door and its guides (docs/*.md; the decision records hold no runnable blocks)
 DOCUMENTS = (REPO_ROOT / "README.md", *sorted((REPO_ROOT / "docs").glob("*.md")))
 VENV = REPO_ROOT / ".venv"

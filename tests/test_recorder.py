@@ -23,6 +23,8 @@ from teleop.record.recorder import SessionRecorder
 from teleop.record.session import SessionError, open_session, repair_session
 from tests.killed_recorder import record_then_kill
 
+pytestmark = pytest.mark.slow
+
 REPO = Path(__file__).resolve().parents[1]
 JOINTS = [f"rh_J{i}" for i in range(24)]
 FINGERS = ["thumb", "forefinger", "middle", "ring", "little"]

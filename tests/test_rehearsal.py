@@ -33,6 +33,8 @@ from sim.validate.validator import Validator
 from sim.world.objects import load_object
 from tests.conftest import needs_ycb
 
+pytestmark = pytest.mark.slow
+
 #: a grasp of the authors' sugar-box demo's augmentation (frame_palm in the object frame,
 #: metres, wxyz; 24 joints): fails the benchmark with the targets as made, holds it with the
 #: rehearsed ones

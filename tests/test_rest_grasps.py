@@ -37,7 +37,7 @@ from sim.world.render import gl_available
 from sim.world.resting import resting_poses
 from tests.conftest import needs_menagerie, needs_ycb
 
-pytestmark = [needs_menagerie, needs_ycb, pytest.mark.timeout(300)]
+pytestmark = [pytest.mark.slow, needs_menagerie, needs_ycb, pytest.mark.timeout(300)]
 
 REPO = Path(__file__).resolve().parents[1]
 CAN = "005_tomato_soup_can"

@@ -35,6 +35,8 @@ from teleop.synthetic.surface import surface_distance_m
 from tests.conftest import needs_menagerie, needs_ycb
 from tests.test_retarget import _bad_copy
 
+pytestmark = pytest.mark.slow
+
 OBJECTS = ("005_tomato_soup_can", "004_sugar_box")
 #: a human pad this close to the surface at the grasp counts as touching (metres)
 TOUCH_M = 0.002

@@ -58,7 +58,7 @@ MEASURED_MEDIAN_MM = {
 }
 MARGIN_MM = 3.0
 
-pytestmark = [needs_menagerie,
+pytestmark = [pytest.mark.slow, needs_menagerie,
               pytest.mark.skipif(not CAPTURE.is_file(), reason=f"no hand capture {CAPTURE}")]
 
 

@@ -41,6 +41,8 @@ from tests.browser import new_page
 from tests.conftest import HANG_S, SOON_S, needs_menagerie, needs_ycb, wait_for
 from tests.fake_results import fake_result
 
+pytestmark = pytest.mark.slow
+
 DICE = REPO_ROOT / "recordings" / "demo_062_dice.mcap"
 EVIL = "http://evil.example"
 OWN = {"Content-Type": "application/json", "X-Dexaug": "1"}   # what the page's JS sends

@@ -31,6 +31,8 @@ from teleop.input.tls import ensure_certificate, local_addresses
 from teleop.input.web_ingest import WebIngest, WebIngestConfig
 from tests.conftest import HANG_S, SOON_S, needs_menagerie, wait_for, wait_for_queryable
 
+pytestmark = pytest.mark.slow
+
 TOKEN = "test-token-0123456789"
 
 

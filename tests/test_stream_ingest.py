@@ -19,7 +19,8 @@ from teleop.messages import JOINT_INDEX, MessageError, decode
 from tests.conftest import SOON_S, wait_for, wait_for_match
 
 DERIVED = SHARED_ASSETS / "handdata" / "quest3_webxr" / "derived" / "quest3_hands_world.npz"
-pytestmark = pytest.mark.skipif(not DERIVED.is_file(), reason=f"no derived capture {DERIVED}")
+pytestmark = [pytest.mark.slow,
+              pytest.mark.skipif(not DERIVED.is_file(), reason=f"no derived capture {DERIVED}")]
 
 
 def _hts_packet(side: str, pos_xr: np.ndarray, quat_xyzw: np.ndarray) -> str:

@@ -25,6 +25,8 @@ from teleop.synthetic.synthesize import synthesize
 from teleop.synthetic.writer import write_session
 from tests.conftest import needs_menagerie, needs_ycb
 
+pytestmark = pytest.mark.slow
+
 CAN = "005_tomato_soup_can"
 #: A shorter episode for the tests that do not care about the motion's pace.
 SHORT = SynthConfig(still_s=0.1, approach_s=0.5, close_s=0.3, settle_s=0.3, lift_s=0.3,

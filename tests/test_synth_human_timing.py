@@ -21,6 +21,8 @@ from teleop.synthetic.human_hand import FINGERS
 from teleop.synthetic.synthesize import synthesize
 from tests.conftest import needs_menagerie, needs_ycb
 
+pytestmark = pytest.mark.slow
+
 HUMAN = {"close_s": 0.3, "standoff_m": (0.003, 0.008), "lift_delay_s": (0.12, 0.60),
          "press_depth_m": 0.0}
 

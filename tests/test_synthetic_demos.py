@@ -16,6 +16,8 @@ from teleop.synthetic.synthesize import synthesize
 from teleop.synthetic.writer import write_session
 from tests.conftest import needs_menagerie, needs_ycb
 
+pytestmark = pytest.mark.slow
+
 
 @needs_menagerie
 @needs_ycb

@@ -16,8 +16,11 @@ Noise-free operator, real YCB meshes, the Shadow Hand's mapping.
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from tests.conftest import needs_menagerie, needs_ycb
+
+pytestmark = pytest.mark.slow
 
 
 def _reach_clearance_m(obj: str, hand) -> dict[str, float]:

@@ -22,7 +22,7 @@ from teleop.messages import HandFrame
 from tests.conftest import SOON_S, needs_menagerie, wait_for
 from tests.test_bridge_faults import _Live
 
-pytestmark = needs_menagerie
+pytestmark = [pytest.mark.slow, needs_menagerie]
 
 
 @pytest.fixture(scope="module")

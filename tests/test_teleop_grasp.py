@@ -24,6 +24,8 @@ from teleop.bridge.grasp_assist import AssistSettings, GraspAssist, GraspCue
 from teleop.retarget.snap import snap_distances
 from tests.conftest import needs_menagerie, needs_ycb
 
+pytestmark = pytest.mark.slow
+
 # --- press -----------------------------------------------------------------------------------
 
 

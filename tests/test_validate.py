@@ -22,7 +22,7 @@ from sim.validate.validator import Validator
 from sim.world.objects import load_object
 from tests.conftest import needs_menagerie, needs_ycb
 
-pytestmark = [needs_menagerie, needs_ycb]
+pytestmark = [pytest.mark.slow, needs_menagerie, needs_ycb]
 OBJECTS = ["005_tomato_soup_can", "004_sugar_box"]
 
 

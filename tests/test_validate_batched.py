@@ -24,7 +24,7 @@ from sim.validate.validator import BATCH_SIMS, Validator
 from sim.world.objects import load_object
 from tests.conftest import needs_menagerie, needs_ycb
 
-pytestmark = [needs_menagerie, needs_ycb]
+pytestmark = [pytest.mark.slow, needs_menagerie, needs_ycb]
 OBJ = "005_tomato_soup_can"
 
 

@@ -25,7 +25,7 @@ from sim.hand.config import hand_names
 from tests.browser import artifact_path, new_page
 from tests.conftest import needs_menagerie, needs_ycb
 
-pytestmark = [needs_menagerie, needs_ycb]
+pytestmark = [pytest.mark.slow, needs_menagerie, needs_ycb]
 
 #: the authors' table-mode demo of the sugar box: its result has passes and failures
 DEMO = Path(__file__).resolve().parent.parent / "recordings/demos/human/004_sugar_box.json"

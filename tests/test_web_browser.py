@@ -30,7 +30,8 @@ CAPTURE_DIR = SHARED_ASSETS / "handdata" / "quest3_webxr"
 CAPTURE = CAPTURE_DIR / "cap.min.js"
 DERIVED = CAPTURE_DIR / "derived" / "quest3_hands_world.npz"
 FIRST, LAST = 950, 1711  # the capture's hand-tracking segment is rows 955–1711
-pytestmark = [pytest.mark.skipif(not CAPTURE.is_file(), reason=f"no hand capture {CAPTURE}"),
+pytestmark = [pytest.mark.slow,
+              pytest.mark.skipif(not CAPTURE.is_file(), reason=f"no hand capture {CAPTURE}"),
               pytest.mark.timeout(180)]
 
 

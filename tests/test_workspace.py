@@ -34,7 +34,7 @@ from sim.hand.model import Hand
 from sim.transforms import pose_mul, quat_to_mat
 from tests.conftest import needs_menagerie
 
-pytestmark = needs_menagerie
+pytestmark = [pytest.mark.slow, needs_menagerie]
 
 HANDS = ("shadow_right", "allegro_right", "robotiq_2f85")
 
