@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Does a test fail when a guard is gone? Each security guard and fault handler the guides claim
-(docs/quest-capture.md, "Security and faults": loopback by default, the per-start token, the
+(docs/security.md: loopback by default, the per-start token, the
 Host / Origin / CSRF checks of the dashboard and the headset page, a remote caller never
 choosing a file path, the recorder's disk-full / kill / truncation handling, the bridge's
 wrist-jump limit and instability restore, busy ports, Ctrl-C ending FSG's workers) is listed
