@@ -26,7 +26,7 @@ from sim.world.objects import load_object
 from tests.conftest import needs_menagerie, needs_ycb
 from tests.test_episodes import DEMOS, shifted_grasps
 
-pytestmark = [needs_menagerie, needs_ycb]
+pytestmark = [pytest.mark.slow, needs_menagerie, needs_ycb]
 pytest.importorskip("pyarrow", reason="the LeRobot export's extra: pip install -e '.[lerobot]'")
 
 from augment.export.lerobot import FAILED_FILE, write_lerobot  # noqa: E402
@@ -263,3 +263,38 @@ def test_lerobots_own_reader_gives_the_episodes(rolled, exported) -> None:
     assert int(item["episode_index"]) == 1 and item["task"] == data.tasks[0]
     assert np.array_equal(item["action"].numpy(), data.frames["action"][len(kept[0])]
                           .astype(np.float32))
+
+
+def test_camera_frames_are_an_image_feature_of_every_frame(shadow: Hand, tmp_path) -> None:
+    """``--camera``: a rollout rendered on every state row (32x32: about 16 ms a frame with
+    software EGL, so this test takes about 10 s), the hand and the die covering at least a
+    tenth of every frame (the scene's far overview camera left them 5.7 %), gives
+    ``observation.images.overview`` as LeRobot's ``image`` dtype: PNGs in the parquet that
+    decode to the rendered pixels exactly, with per-channel stats in [0, 1]; a rollout
+    rendered on every 400th row only is refused (a camera needs every frame's image)."""
+    from sim.world.render import gl_available
+
+    if gl_available() is None:
+        pytest.skip("no offscreen rendering (EGL/OSMesa)")
+    v = Validator(shadow, load_object("062_dice"))
+    grasp = shifted_grasps("062_dice")[0]
+    ep = rollout(v, grasp, camera=(32, 32))
+    assert ep.success
+    write_lerobot(tmp_path / "cam", [ep])
+    data = read_lerobot(tmp_path / "cam")
+    ft = data.info["features"]["observation.images.overview"]
+    assert ft == {"dtype": "image", "shape": [32, 32, 3], "names": ["height", "width", "channels"]}
+    images = data.frames["observation.images.overview"]
+    assert images.shape == (len(ep), 32, 32, 3) and images.dtype == np.uint8
+    covered = (images.max(axis=-1) > 0).mean(axis=(1, 2))   # share of drawn pixels per frame
+    assert covered.min() >= 0.1, covered.min()
+    assert np.array_equal(images, ep.frames[:len(ep)])           # lossless: PNG
+    stats = data.stats["observation.images.overview"]
+    x = images.reshape(-1, 3) / 255.0
+    assert np.array_equal(stats["mean"].shape, (3, 1, 1))
+    assert np.allclose(stats["mean"].ravel(), x.mean(axis=0), rtol=1e-12)
+    assert np.array_equal(stats["max"].ravel(), x.max(axis=0))
+    assert stats["count"].tolist() == [len(ep)]
+    sparse = rollout(v, grasp, camera=(8, 8), camera_every=400)
+    with pytest.raises(ValueError, match="a LeRobot camera needs every frame's"):
+        write_lerobot(tmp_path / "sparse", [sparse])

@@ -1,4 +1,4 @@
-"""An episode as LeRobot frames: the features, their names, and one episode's columns.
+"""A rollout as LeRobot frames: the features, their names, and one episode's columns.
 
 Why a module of its own: what a frame *is* (which arrays of :class:`sim.episodes.episode.Episode`
 go into ``observation.state`` and ``action``, in which order, under which names) is the
@@ -14,22 +14,28 @@ it. The protocol's conditions (gravity, the force on the object, the object pinn
 closing) ride along as ``protocol.*`` features, so the dataset alone replays in MuJoCo
 (:mod:`augment.export.lerobot_read`). Units: metres, radians, rad/s, newtons, seconds;
 quaternions wxyz.
+
+A rollout rendered with a camera (``rollout(..., camera=(h, w))``) adds
+``observation.images.<camera>``: the frame showing state row t, for every frame t; its
+images must cover every state row (``camera_every=1``): a LeRobot image feature has a value
+on every frame, and an image repeated or left out would be one the simulation never showed.
 """
 
 from __future__ import annotations
 
+import json
 from typing import Any
 
 import numpy as np
 
+from augment.export.lerobot_episode import IMAGE_PREFIX, LeRobotEpisode, image_feature
 from sim.episodes.episode import Episode
 
-__all__ = ["INDEX_FEATURES", "POSE_NAMES", "episode_columns", "features_of", "fps_of",
-           "same_layout", "task_text"]
+__all__ = ["CAMERA_FEATURE", "POSE_NAMES", "episode_columns", "features_of", "fps_of",
+           "from_rollout", "task_text"]
 
-#: LeRobot's own per-frame bookkeeping features (dtype, as its reader expects them)
-INDEX_FEATURES = {"timestamp": "float32", "frame_index": "int64", "episode_index": "int64",
-                  "index": "int64", "task_index": "int64"}
+#: the feature a rollout's rendered frames go to (its camera: the scene's overview camera)
+CAMERA_FEATURE = IMAGE_PREFIX + "overview"
 #: the seven numbers of a pose: position (metres, world) and orientation (wxyz)
 POSE_NAMES = ("x", "y", "z", "qw", "qx", "qy", "qz")
 
@@ -43,11 +49,11 @@ def fps_of(timestep_s: float) -> int:
     return fps
 
 
-def task_text(episode: Episode) -> str:
+def task_text(object_name: str, hand: str) -> str:
     """The task in words, as LeRobot stores it per episode (object names as dexaug has them,
-    ``004_sugar_box`` → ``sugar box``)."""
-    obj = episode.object.split("_", 1)[-1] if episode.object[:3].isdigit() else episode.object
-    return f"grasp and lift the {obj.replace('_', ' ')} with the {episode.hand.replace('_', ' ')}"
+    ``004_sugar_box`` → ``sugar box``); rollouts and sessions of one object and hand share it."""
+    obj = object_name.split("_", 1)[-1] if object_name[:3].isdigit() else object_name
+    return f"grasp and lift the {obj.replace('_', ' ')} with the {hand.replace('_', ' ')}"
 
 
 def _names(episode: Episode) -> dict[str, list[str]]:
@@ -65,28 +71,56 @@ def _names(episode: Episode) -> dict[str, list[str]]:
 
 
 def features_of(episode: Episode) -> dict[str, dict[str, Any]]:
-    """LeRobot's ``features`` of info.json for episodes laid out as ``episode`` is: dtype,
+    """LeRobot's ``features`` of info.json for rollouts laid out as ``episode`` is: dtype,
     shape and column names per feature (``fps`` is added by LeRobot's own writer per
-    feature, not needed by its reader)."""
+    feature, not needed by its reader; the writer adds its bookkeeping features)."""
     out: dict[str, dict[str, Any]] = {
         k: {"dtype": "float64", "shape": [len(v)], "names": v}
         for k, v in _names(episode).items()}
     out["next.done"] = {"dtype": "bool", "shape": [1], "names": None}
     out["next.success"] = {"dtype": "bool", "shape": [1], "names": None}
-    out.update({k: {"dtype": t, "shape": [1], "names": None} for k, t in INDEX_FEATURES.items()})
+    if len(episode.frames):
+        out[CAMERA_FEATURE] = image_feature(*episode.frames.shape[1:3])
     return out
 
 
-def same_layout(a: Episode, b: Episode) -> bool:
-    """Whether two episodes give frames of the same features (one LeRobot dataset holds one
-    layout: the same hand's joints, actuators and fingers)."""
-    return _names(a) == _names(b)
+def _images(episode: Episode) -> np.ndarray:
+    """The rendered frame of each of the episode's frames (module docstring)."""
+    n = len(episode)
+    rows = np.asarray(episode.frame_rows)
+    if len(rows) < n or not np.array_equal(rows[:n], np.arange(n)):
+        raise ValueError(f"the rollout of grasp {episode.grasp_index} has images of "
+                         f"{len(rows)} of its {n + 1} state rows: a LeRobot camera needs every "
+                         "frame's (rollout(..., camera_every=1))")
+    return episode.frames[:n]
 
 
-def episode_columns(episode: Episode, episode_index: int, first_index: int,
-                    task_index: int) -> dict[str, np.ndarray]:
-    """The frames of ``episode`` (module docstring) as one array per feature, rows = frames;
-    ``first_index``: the dataset-wide ``index`` of its first frame."""
+def from_rollout(episode: Episode) -> LeRobotEpisode:
+    """A successful rollout as the LeRobot writer's episode: its frames (module docstring),
+    its task, its rate, and its ``dexaug/...`` columns (object, hand, protocol, grasp row,
+    approach, the validator's summary, the initial MuJoCo state the replay starts from)."""
+    columns = episode_columns(episode)
+    if len(episode.frames):
+        columns[CAMERA_FEATURE] = _images(episode)
+    meta = {"dexaug/object": episode.object, "dexaug/hand": episode.hand,
+            "dexaug/protocol": episode.protocol, "dexaug/grasp_index": episode.grasp_index,
+            "dexaug/approach_m": episode.approach_m,
+            "dexaug/result": json.dumps(episode.result, default=_plain),
+            "dexaug/initial_state": episode.initial_state.tolist(),
+            "dexaug/initial_gravity": episode.initial_gravity.tolist()}
+    return LeRobotEpisode(columns, features_of(episode), task_text(episode.object, episode.hand),
+                          fps_of(episode.timestep_s), episode.hand, meta)
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, np.ndarray | np.generic):
+        return value.tolist()
+    raise TypeError(f"not JSON-serialisable: {type(value).__name__}")
+
+
+def episode_columns(episode: Episode) -> dict[str, np.ndarray]:
+    """The frames of ``episode`` (module docstring) as one array per feature, rows = frames
+    (without images and LeRobot's bookkeeping columns, which the writer adds)."""
     s, n = episode.states, len(episode)
     pinned = np.isfinite(episode.pin_pose).all(axis=1)
     pin = np.where(pinned[:, None], episode.pin_pose, 0.0)
@@ -104,8 +138,4 @@ def episode_columns(episode: Episode, episode_index: int, first_index: int,
         "next.done": last,
         "next.success": last & bool(episode.success),
         "timestamp": (episode.time_s - episode.time_s[0]).astype(np.float32),
-        "frame_index": np.arange(n, dtype=np.int64),
-        "episode_index": np.full(n, episode_index, dtype=np.int64),
-        "index": np.arange(first_index, first_index + n, dtype=np.int64),
-        "task_index": np.full(n, task_index, dtype=np.int64),
     }

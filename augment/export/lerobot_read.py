@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from augment.export.lerobot import EPISODES_PATH, pyarrow_modules
+from augment.export.lerobot_images import decode_column
 from sim.episodes.episode import Episode
 
 __all__ = ["LeRobotData", "read_lerobot", "replayable"]
@@ -42,7 +43,8 @@ class LeRobotData:
 
 
 def read_lerobot(root: Path | str) -> LeRobotData:
-    """Read the export at ``root`` (module docstring); vector features as (frames, n) arrays."""
+    """Read the export at ``root`` (module docstring); vector features as (frames, n) arrays,
+    cameras as (frames, h, w, 3) uint8 images."""
     _, pq = pyarrow_modules()
     root = Path(root)
     info = json.loads((root / "meta" / "info.json").read_text())
@@ -60,7 +62,10 @@ def read_lerobot(root: Path | str) -> LeRobotData:
 
 
 def _column(col: Any, ft: dict[str, Any]) -> np.ndarray:
-    """An Arrow column as NumPy: (rows,) for a shape-(1,) feature, else (rows, n)."""
+    """An Arrow column as NumPy: (rows,) for a shape-(1,) feature, (rows, h, w, 3) uint8 for
+    a camera (its PNGs decoded), else (rows, n)."""
+    if ft["dtype"] == "image":
+        return decode_column(col)
     if list(ft["shape"]) == [1]:
         return col.to_numpy()
     flat = col.combine_chunks().flatten().to_numpy()

@@ -27,11 +27,13 @@ def count_grasps(tables: Mapping[str, ObjectTable]) -> int:
     return sum(len(t) for t in tables.values())
 
 
-def rollouts(tables: Mapping[str, ObjectTable], hand: Hand, *,
-             approach_m: float = 0.0) -> Iterator[Episode]:
+def rollouts(tables: Mapping[str, ObjectTable], hand: Hand, *, approach_m: float = 0.0,
+             camera: tuple[int, int] | None = None) -> Iterator[Episode]:
     """Every grasp of every table rolled out, table by table, in row order (``grasp_index``:
-    the row in its table); ``approach_m``: as :func:`sim.episodes.rollout.rollout`."""
+    the row in its table); ``approach_m``: as :func:`sim.episodes.rollout.rollout`;
+    ``camera``: (height, width) of an image of every state row (``camera_every=1``: a
+    LeRobot camera has an image on every frame, :mod:`augment.export.lerobot_frames`)."""
     for name, table in tables.items():
         validator = Validator(hand, load_object(name))
         for i, grasp in enumerate(grasps_of(table)):
-            yield rollout(validator, grasp, index=i, approach_m=approach_m)
+            yield rollout(validator, grasp, index=i, approach_m=approach_m, camera=camera)

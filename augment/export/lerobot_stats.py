@@ -17,7 +17,8 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-__all__ = ["QUANTILES", "STAT_KEYS", "aggregate", "feature_stats", "stats_of", "to_json"]
+__all__ = ["QUANTILES", "STAT_KEYS", "aggregate", "feature_stats", "image_stats", "stats_of",
+           "to_json"]
 
 #: quantile levels LeRobot's stats carry, and their keys
 QUANTILES = {"q01": 0.01, "q10": 0.10, "q50": 0.50, "q90": 0.90, "q99": 0.99}
@@ -35,9 +36,26 @@ def feature_stats(values: np.ndarray) -> dict[str, np.ndarray]:
     return out
 
 
-def stats_of(columns: Mapping[str, np.ndarray]) -> dict[str, dict[str, np.ndarray]]:
-    """:func:`feature_stats` of every column."""
-    return {k: feature_stats(v) for k, v in columns.items()}
+def image_stats(frames: np.ndarray) -> dict[str, np.ndarray]:
+    """LeRobot's statistics of one camera's frames ((n, h, w, 3) uint8), as its
+    ``compute_episode_stats`` makes them: per colour channel over every pixel of every frame
+    (LeRobot samples frames; here all are used), divided by 255, each shaped (3, 1, 1);
+    ``count`` the number of frames."""
+    x = np.asarray(frames, dtype=np.float64).reshape(-1, 3) / 255.0
+    out = {"min": x.min(axis=0), "max": x.max(axis=0), "mean": x.mean(axis=0),
+           "std": x.std(axis=0)}
+    out.update({k: np.quantile(x, q, axis=0) for k, q in QUANTILES.items()})
+    shaped = {k: v.reshape(3, 1, 1) for k, v in out.items()}
+    shaped["count"] = np.array([len(frames)], dtype=np.int64)
+    return shaped
+
+
+def stats_of(columns: Mapping[str, np.ndarray],
+             image_keys: frozenset[str] = frozenset()) -> dict[str, dict[str, np.ndarray]]:
+    """:func:`feature_stats` of every column; the camera columns ``image_keys`` per colour
+    channel as LeRobot keeps a camera's (:func:`image_stats`)."""
+    return {k: image_stats(v) if k in image_keys else feature_stats(v)
+            for k, v in columns.items()}
 
 
 def aggregate(parts: Sequence[Mapping[str, Mapping[str, np.ndarray]]]
@@ -47,7 +65,8 @@ def aggregate(parts: Sequence[Mapping[str, Mapping[str, np.ndarray]]]
     out: dict[str, dict[str, np.ndarray]] = {}
     for k in parts[0]:
         per = [p[k] for p in parts]
-        n = np.array([p["count"][0] for p in per], dtype=np.float64)[:, None]
+        counts = np.array([p["count"][0] for p in per], dtype=np.float64)
+        n = counts.reshape(-1, *[1] * np.ndim(per[0]["mean"]))   # broadcast over the stat's shape
         means = np.stack([p["mean"] for p in per])
         mean = (n * means).sum(axis=0) / n.sum()
         second = (n * (np.stack([p["std"] for p in per]) ** 2 + means ** 2)).sum(axis=0) / n.sum()

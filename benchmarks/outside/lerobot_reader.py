@@ -19,8 +19,10 @@ import numpy as np
 
 def check_lerobot(root: Path, expected: Path) -> dict[str, Any]:
     """In LeRobot's venv: ``LeRobotDataset`` on ``root``, its frames against ``expected``
-    (an .npz of the episodes' ``observation.state``, ``action``, ``episode_index`` rows).
-    Its table holds float64 exactly; its items are torch tensors (float32 of the same)."""
+    (an .npz of the episodes' ``observation.state``, ``action``, ``episode_index`` rows, and
+    per camera its (frames, h, w, 3) uint8 images where the export has one). Its table holds
+    float64 exactly; its items are torch tensors (float32 of the same; images (3, h, w) in
+    [0, 1], what LeRobot makes of a PNG); the fps may be a non-integer (a session's)."""
     import importlib.metadata
 
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
@@ -49,6 +51,14 @@ def check_lerobot(root: Path, expected: Path) -> dict[str, Any]:
                            want["observation.state"][i].astype(np.float32))
         and int(ds[i]["episode_index"]) == int(want["episode_index"][i]) for i in items)
     out["task"] = ds[0]["task"]
+    out["camera_keys"] = list(ds.meta.camera_keys)
+    for cam in ds.meta.camera_keys:   # LeRobot's items: (3, h, w) float32 in [0, 1]
+        if cam in want.files:
+            want_img = want[cam].transpose(0, 3, 1, 2).astype(np.float32) / 255.0
+            out[f"{cam}_item_shape"] = list(ds[0][cam].shape)
+            out[f"{cam}_items_equal"] = all(
+                np.array_equal(ds[i][cam].numpy(), want_img[i]) for i in items)
+            out[f"{cam}_stats_mean"] = np.asarray(ds.meta.stats[cam]["mean"]).ravel().tolist()
     # as a policy is trained: chunks of the next actions (LeRobot checks the timestamps
     # against fps for this), through a torch DataLoader
     import torch

@@ -1,7 +1,9 @@
-"""Subcommand ``export``: a grasp dataset in a layout other tools read.
+"""Subcommand ``export``: a grasp dataset in a layout other tools read, or recorded teleop
+sessions as a LeRobot dataset.
 
 The work is :mod:`augment.export`; this module picks the tables, the hand, the masses and the
-object frames, and prints what was written.
+object frames (or reads the sessions, :mod:`teleop.record.session_steps`), and prints what was
+written.
 """
 
 from __future__ import annotations
@@ -23,10 +25,32 @@ __all__ = ["export"]
 FSG_KEYFRAMES = ("handdata", "fsg_keyframes")
 
 
+def _source(text: str) -> Path:
+    """A grasp dataset (:func:`dataset_file`) or a recorded session (an existing ``.mcap``
+    file; its content is checked when it is read)."""
+    path = Path(text)
+    if path.suffix != ".mcap":
+        return dataset_file(text)
+    if not path.is_file():
+        raise argparse.ArgumentTypeError(f"{path}: no such session file (a recorded .mcap)")
+    return path
+
+
+def camera_size(text: str) -> tuple[int, int]:
+    """``HxW`` (pixels, e.g. ``64x64``) as (height, width)."""
+    h, sep, w = text.lower().partition("x")
+    if not sep or not h.isdigit() or not w.isdigit() or int(h) < 1 or int(w) < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected HEIGHTxWIDTH in pixels, e.g. 64x64")
+    return int(h), int(w)
+
+
 def _export_args(p: argparse.ArgumentParser) -> None:
     from sim.validate.config import SQUEEZE_CONVENTIONS
 
-    p.add_argument("dataset", type=dataset_file, help="a grasps.h5 written by augment/generate")
+    p.add_argument("dataset", type=_source, nargs="+", metavar="DATASET|SESSION.mcap",
+                   help="a grasps.h5 written by augment/generate; or, for --format lerobot "
+                        "only, one or more sessions recorded through the bridge (.mcap, as "
+                        "in recordings/), each an episode of the person's demonstration")
     p.add_argument("--format", choices=(*FORMATS, "lerobot"), required=True,
                    help="dexgraspbench: one JSON line per grasp in the DexGraspBench reference "
                         "layout (palm body pose in the world, joints by name, pregrasp/squeeze); "
@@ -37,11 +61,17 @@ def _export_args(p: argparse.ArgumentParser) -> None:
                         "with the usual permissions (0777 less the umask); lerobot: every "
                         "grasp rolled out by lift-drop, the successful rollouts as episodes of "
                         "a LeRobot dataset (format v3.0, a folder; failed ones listed in its "
-                        "failed_rollouts.json; needs the extra dexaug[lerobot])")
+                        "failed_rollouts.json; needs the extra dexaug[lerobot]); of sessions, "
+                        "one episode each at the recording's rate")
     p.add_argument("--out", type=Path, required=True,
                    help="file to write (replaced atomically); for bodex and lerobot a folder "
                         "(replaced whole, only if it is empty or an earlier export of that "
                         "format)")
+    p.add_argument("--camera", type=camera_size, default=None, metavar="HxW",
+                   help="lerobot, grasp datasets: also render every frame of each rollout "
+                        "(the overview camera, HEIGHTxWIDTH pixels, e.g. 64x64) into the "
+                        "feature observation.images.overview (PNG in the parquet); offscreen "
+                        "rendering costs milliseconds to tenths of a second a frame")
     p.add_argument("--object", help="only this object's table (default: every object)")
     p.add_argument("--rejected", action="store_true",
                    help="also the grasps that failed validation (their verdict says so); "
@@ -73,7 +103,7 @@ def _export_args(p: argparse.ArgumentParser) -> None:
 def _tables(path: Path, name: str | None, rejected: bool) -> dict:
     from augment.dataset import load, with_rejected
 
-    tables = load(path)
+    tables = dict(load(path))
     if name is not None:
         if name not in tables:
             raise DexaugError(f"{path}: no object {name!r} (has {sorted(tables)})"
@@ -124,26 +154,34 @@ def fsg_mesh_transforms(names: list[str]) -> dict[str, list[float]]:
     return out
 
 
-def _refuse_options(args: argparse.Namespace) -> None:
-    """Options that mean nothing for the chosen format are refused rather than ignored."""
-    allowed = {"dexgraspbench": {"object_pose"}, "npz": set(),
-               "fsg": {"object_frame", "object_transform"},
-               "bodex": {"object_pose", "squeeze_convention", "object_root"},
-               "lerobot": set()}[args.format]
-    given = {"object_pose": args.object_pose is not None,
+def _refuse_options(args: argparse.Namespace, sessions: bool) -> None:
+    """Options that mean nothing for the chosen format (or for sessions, which have no
+    tables and render nothing) are refused rather than ignored."""
+    allowed = {"dexgraspbench": {"object_pose", "object", "rejected"},
+               "npz": {"object", "rejected"},
+               "fsg": {"object_frame", "object_transform", "object", "rejected"},
+               "bodex": {"object_pose", "squeeze_convention", "object_root", "object",
+                         "rejected"},
+               "lerobot": {"camera", "object", "rejected"}}[args.format]
+    if sessions:
+        allowed = set()
+    given = {"camera": args.camera is not None, "object": args.object is not None,
+             "rejected": args.rejected, "object_pose": args.object_pose is not None,
              "object_frame": args.object_frame != "dexaug",
              "object_transform": args.object_transform is not None,
              "squeeze_convention": args.squeeze_convention is not None,
              "object_root": args.object_root != "assets/object"}
     bad = [k for k, v in given.items() if v and k not in allowed]
     if bad:
-        raise UsageError(f"--{bad[0].replace('_', '-')} does not apply to --format {args.format}")
+        what = "sessions" if sessions else f"--format {args.format}"
+        raise UsageError(f"--{bad[0].replace('_', '-')} does not apply to {what}")
 
 
 @command("export", _export_args)
 def export(args: argparse.Namespace, console: Console) -> int:
     """Export a grasp dataset: DexGraspBench's reference JSONL, a flat .npz, the FSG authors'
-    HDF5, DexGraspBench/BODex per-grasp files, or its grasps rolled out as a LeRobot dataset.
+    HDF5, DexGraspBench/BODex per-grasp files, or its grasps rolled out as a LeRobot dataset;
+    or recorded teleop sessions as a LeRobot dataset.
 
     The dexgraspbench layout is the one of ../shared/reference/dexgraspbench/grasps.jsonl: the
     hand's palm body pose and the object pose in the world, q_grasp / q_pregrasp / q_squeeze by
@@ -152,12 +190,19 @@ def export(args: argparse.Namespace, console: Console) -> int:
     frame_palm and 24 joints to their rh_palm-based poses and 22 joints (augment.export.fsg,
     augment.export.bodex; tests/test_export_fsg.py, tests/test_export_bodex.py). lerobot
     rolls every grasp out by lift-drop and writes the successful episodes in LeRobot's
-    format v3.0 (augment.export.lerobot, docs/learning.md; tests/test_export_lerobot.py).
+    format v3.0 (augment.export.lerobot, docs/learning.md; tests/test_export_lerobot.py),
+    with ``--camera HxW`` an image of every frame too; recorded sessions (``.mcap``) go to
+    lerobot only, one episode each (augment.export.lerobot_sessions;
+    tests/test_export_lerobot_sessions.py).
     """
     from augment import export as ex
 
-    _refuse_options(args)
+    sessions = _sessions(args)
+    _refuse_options(args, bool(sessions))
     require_writable(args.out, "--out", folder=args.format in ("bodex", "lerobot"))
+    if sessions:
+        return _export_sessions(args.out, sessions, console)
+    args.dataset = args.dataset[0]
     tables = _tables(args.dataset, args.object, args.rejected)
     source = str(args.dataset)
     note = ""
@@ -179,10 +224,10 @@ def export(args: argparse.Namespace, console: Console) -> int:
                       if args.object_transform is not None
                       else fsg_mesh_transforms(list(tables))
                       if args.object_frame == "fsg-mesh" else None)
-        done = ex.write_fsg(args.out, tables, _hand(args.dataset, tables),
-                            object_transforms=transforms, source=source)
-        n = done.grasps
-        note = _dropped_note(done.dropped_moved)
+        fsg = ex.write_fsg(args.out, tables, _hand(args.dataset, tables),
+                           object_transforms=transforms, source=source)
+        n = fsg.grasps
+        note = _dropped_note(fsg.dropped_moved)
     else:
         done = ex.write_bodex(args.out, tables, _hand(args.dataset, tables),
                               object_pose_world=args.object_pose or ex.IDENTITY_POSE,
@@ -193,6 +238,40 @@ def export(args: argparse.Namespace, console: Console) -> int:
         note += _dropped_note(done.dropped_moved)
     console.print(Text(f"wrote {n} grasps of {len(tables)} object(s) to {args.out} "
                        f"({args.format}){note}"))
+    return 0
+
+
+def _sessions(args: argparse.Namespace) -> list[Path]:
+    """The sessions given (``.mcap``), or [] for one grasp dataset; a mix, several datasets,
+    or sessions to a format other than lerobot are refused."""
+    sessions = [p for p in args.dataset if p.suffix == ".mcap"]
+    if sessions and len(sessions) != len(args.dataset):
+        raise UsageError("give either sessions (.mcap) or one grasp dataset, not both")
+    if sessions and args.format != "lerobot":
+        raise UsageError(f"sessions (.mcap) export only as --format lerobot, not {args.format}")
+    if not sessions and len(args.dataset) != 1:
+        raise UsageError(f"one grasp dataset at a time (got {len(args.dataset)})")
+    return sessions
+
+
+def _export_sessions(out: Path, sessions: list[Path], console: Console) -> int:
+    """Each session an episode of a LeRobot dataset (augment.export.lerobot_sessions); print
+    the count and the speed."""
+    import time
+
+    from augment.export.lerobot import pyarrow_modules, write_lerobot
+    from augment.export.lerobot_sessions import session_episode
+    from teleop.record.session_steps import read_session_steps
+
+    pyarrow_modules()
+    start = time.perf_counter()
+    episodes = (session_episode(read_session_steps(p)) for p in sessions)
+    done = write_lerobot(out, episodes, source=", ".join(map(str, sessions)))
+    wall_s = time.perf_counter() - start
+    console.print(Text(f"wrote {done.episodes} session episode(s) ({done.frames} frames) to "
+                       f"{out} (lerobot v3.0) in {wall_s:.2f} s: "
+                       f"{done.episodes / wall_s:.1f} episodes/s, {done.frames / wall_s:.0f} "
+                       "frames/s"))
     return 0
 
 
@@ -213,12 +292,17 @@ def _export_lerobot(args: argparse.Namespace, console: Console, tables: dict) ->
 
     pyarrow_modules()   # the missing extra is said before any rollout, not after
     hand = _hand(args.dataset, tables)
+    if args.camera is not None:
+        from sim.world.render import select_gl_backend
+
+        select_gl_backend()
     start = time.perf_counter()
     with Progress("[progress.description]{task.description}", BarColumn(),
                   MofNCompleteColumn(), TimeRemainingColumn(), console=console,
                   transient=True) as bar:
         task = bar.add_task("rolling out grasps", total=count_grasps(tables))
-        done = write_lerobot(args.out, rollouts(tables, hand), source=str(args.dataset),
+        done = write_lerobot(args.out, rollouts(tables, hand, camera=args.camera),
+                             source=str(args.dataset),
                              progress=lambda n: bar.update(task, completed=n))
     wall_s = time.perf_counter() - start
     rate = (done.episodes + done.failed) / wall_s if wall_s > 0 else float("inf")

@@ -8,7 +8,8 @@ hand base's mocap target ``base_target_pos[t]`` (metres, world) / ``base_target_
 that pose after the step; NaN: not pinned), from the state of row t to that of row t + 1 of
 the state arrays (:data:`sim.episodes.observe.STATE_KEYS`, T + 1 rows: the first is the
 start, at the pregrasp or out on the approach). A rollout with a camera adds ``frames``
-(K, h, w, 3), RGB uint8 images of the overview camera showing state rows ``frame_rows`` (K).
+(K, h, w, 3), RGB uint8 images of the hand and object (a camera framed on them at the
+start) showing state rows ``frame_rows`` (K).
 ``stage[t]`` names the protocol stage step t belongs to (:data:`STAGES`) and ``time_s[t]``
 the simulation time before it. ``initial_state`` is the full MuJoCo state
 (mjSTATE_INTEGRATION) of row 0 and ``initial_gravity`` the gravity then: with them, a fresh
