@@ -132,6 +132,8 @@ def grasp_stage_poses(t: ObjectTable) -> np.ndarray:
 def grasps_of(t: ObjectTable | None, limit: int | None = None) -> list[Grasp]:
     """The first ``limit`` (default all) rows of ``t`` as :class:`sim.grasp.Grasp` (palm pose and
     joints; stages are left for the validator to derive), none for a missing table."""
-    n = 0 if t is None else len(t) if limit is None else min(limit, len(t))
+    if t is None:
+        return []
+    n = len(t) if limit is None else min(limit, len(t))
     return [Grasp.from_arrays(t["palm_pose"][i][:3], t["palm_pose"][i][3:], t["hand_pose"][i])
             for i in range(n)]

@@ -190,7 +190,7 @@ def object_cloud(obj: ObjectAsset, n_points: int = 1024, seed: int = 0,
         arrays = {"points": pts, "normals": nrm, "curvature": normal_variation(pts, nrm)}
         if cache:
             buf = io.BytesIO()
-            np.savez(buf, **arrays)
+            np.savez(buf, **arrays)  # type: ignore[arg-type]  # numpy stubs type **kwds as allow_pickle's bool
             with atomic_path(path) as tmp:
                 tmp.write_bytes(buf.getbuffer())
     pts, nrm, curv = arrays["points"], arrays["normals"], arrays["curvature"]

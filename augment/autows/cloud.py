@@ -133,7 +133,7 @@ class WorkspaceCloud:
                 "provenance": self.provenance}
         arrays["meta"] = np.array(json.dumps(meta))
         buf = io.BytesIO()
-        np.savez(buf, **arrays)
+        np.savez(buf, **arrays)  # type: ignore[arg-type]  # numpy stubs type **kwds as allow_pickle's bool
         with atomic_path(path) as tmp:
             tmp.write_bytes(buf.getbuffer())
 

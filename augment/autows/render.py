@@ -85,7 +85,7 @@ def render_workspace_png(hand: Hand, cloud: WorkspaceCloud, path: Path | str | N
     if q is None:
         demo_q = cloud.provenance.get("demo_joints")
         q = np.zeros(hand.nq) if demo_q is None else np.asarray(demo_q, dtype=float)
-    qv = hand.check_q(q, "render joint vector")
+    qv = hand.check_q(np.asarray(q, dtype=float), "render joint vector")
     model = hand.spec().compile()  # render_scene changes visual scales: keep hand.model intact
     model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
     model.vis.global_.offheight = max(model.vis.global_.offheight, height)
@@ -120,7 +120,8 @@ def render_workspace_png(hand: Hand, cloud: WorkspaceCloud, path: Path | str | N
     with Canvas(img) as canvas:
         for i, f in enumerate(cloud.fingers):
             colour = _COLOURS_RGB[i % len(_COLOURS_RGB)]
-            dim = tuple(int(0.55 * c) for c in colour)
+            r, g, b = colour
+            dim = (int(0.55 * r), int(0.55 * g), int(0.55 * b))
             if f.n_points and skeletons_per_finger > 0:
                 pick = rng.choice(f.n_points, min(skeletons_per_finger, f.n_points), replace=False)
                 for s in f.skeleton[pick]:

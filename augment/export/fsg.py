@@ -123,7 +123,7 @@ def write_fsg(path: Path | str, tables: Mapping[str, ObjectTable], hand: Hand, *
             "data": {"palm_pose": np.c_[body_p, body_q], "hand_pose": q[:, foreign.index],
                      "gws": np.asarray(table["gws"], dtype=float).reshape(-1, 1)},
             "attrs": {"dexaug_object": name, "object_frame": _OURS if t is None else _THEIRS,
-                      "object_transform": np.asarray(_IDENTITY if t is None
+                      "object_transform": np.asarray(_IDENTITY if t is None or object_transforms is None
                                                      else object_transforms[name], float)}}
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
         f.attrs.update({

@@ -28,5 +28,5 @@ def write_npz(path: Path | str, tables: Mapping[str, ObjectTable]) -> int:
         arrays[f"{name}/joint_names"] = np.array(table.joint_names)
         arrays[f"{name}/finger_names"] = np.array(table.finger_names)
     with atomic_path(path) as tmp, open(tmp, "wb") as fh:
-        np.savez(fh, **arrays)
+        np.savez(fh, **arrays)  # type: ignore[arg-type]  # numpy stubs type **kwds as allow_pickle's bool
     return sum(len(t) for t in tables.values())

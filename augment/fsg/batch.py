@@ -39,6 +39,14 @@ if TYPE_CHECKING:
 __all__ = ["Sampler", "SamplerSetup"]
 
 
+def _tip_skeleton(fc: FingerCloud) -> np.ndarray:
+    """``fc``'s fingertip-link skeleton (N, J, 3); empty (N, 0, 3) where the cloud was made
+    without one, as its docstring says of a skeleton not built."""
+    if fc.tip_skeleton is not None:
+        return fc.tip_skeleton
+    return np.zeros((len(fc.skeleton), 0, 3), dtype=np.float32)
+
+
 @dataclass(frozen=True)
 class SamplerSetup:
     """Everything a worker needs, as plain picklable data (no MuJoCo objects).
@@ -127,10 +135,12 @@ class Sampler:
         """Table mode's checks once the fingers are matched: contact-face rims, then the links
         of used fingers at their workspace joints and of idle ones at zero."""
         s, p = self.setup, self.params
+        # table mode only: a setup with a table, whose clouds carry their fingertip skeletons
+        assert s.table is not None
         if contact_faces_below_table(faces, r, t, s.table, p.table_clearance_m):
             return True
         # the whole finger, fingertip link included (the link check leaves it to the contact)
-        skeletons = [np.vstack([fc.skeleton[k], fc.tip_skeleton[k]]) for fc, k in faces]
+        skeletons = [np.vstack([fc.skeleton[k], _tip_skeleton(fc)[k]]) for fc, k in faces]
         skeletons += [sk for f, sk in s.idle_skeletons.items() if f not in fingers]
         return links_below_table(skeletons, r, t, s.table, p.link_clearance_m + p.table_clearance_m)
 

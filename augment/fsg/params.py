@@ -99,7 +99,7 @@ def load_fsg_params(hand: HandConfig, path: Path | str | None = None) -> FsgPara
     sec.reject_unknown(set(fields) - set(HAND_FIELDS))
     geometry = {"fingertip_width_m": hand.fingertip_width_m,
                 "link_clearance_m": hand.link_radius_m}
-    d = FsgParams(**geometry)
+    d = FsgParams(fingertip_width_m=hand.fingertip_width_m, link_clearance_m=hand.link_radius_m)
     kw: dict[str, Any] = dict(geometry)
     for name in set(fields) - set(HAND_FIELDS):
         kw[name] = sec.like(name, getattr(d, name))

@@ -209,9 +209,9 @@ def _search(job: _Job, seed: int, worker: int, n: int, deadline: float,
         stats["closed"] += 1
         if seeded:
             stats["seeded_closed"] += 1
-        grasp = close_on_object(scene, pos, quat, q_from, q_close, close_time_s=p.close_time_s,
-                                hold_time_s=p.hold_time_s, release_after_s=release_s)
-        grasp = _clear_of_object(scene, grasp, p.contact_m)
+        closed = close_on_object(scene, pos, quat, q_from, q_close, close_time_s=p.close_time_s,
+                                 hold_time_s=p.hold_time_s, release_after_s=release_s)
+        grasp = _clear_of_object(scene, closed, p.contact_m)
         if grasp is None:
             stats["penetration"] += 1
             continue
