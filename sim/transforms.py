@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import mujoco
 import numpy as np
+from numpy.typing import ArrayLike
 
 Array = np.ndarray
 
@@ -196,7 +197,7 @@ def slerp_mat(r0: Array, r1: Array, s: float) -> Array:
     return quat_to_mat(q / np.linalg.norm(q))
 
 
-def rpy_deg_to_quat(rpy_deg: Array) -> Array:
+def rpy_deg_to_quat(rpy_deg: ArrayLike) -> Array:
     """Rotation about fixed x, then y, then z (degrees, (3,)) as a wxyz quaternion."""
     rx, ry, rz = np.deg2rad(np.asarray(rpy_deg, dtype=float))
     qx = axis_angle_to_quat(np.array([1.0, 0.0, 0.0]), rx)
@@ -205,7 +206,7 @@ def rpy_deg_to_quat(rpy_deg: Array) -> Array:
     return quat_mul(qz, quat_mul(qy, qx))
 
 
-def rpy_deg_to_mat(rpy_deg: Array) -> Array:
+def rpy_deg_to_mat(rpy_deg: ArrayLike) -> Array:
     """Rotation about fixed x, then y, then z (degrees, (3,)) as a 3×3 matrix."""
     return quat_to_mat(rpy_deg_to_quat(rpy_deg))
 

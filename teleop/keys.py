@@ -123,5 +123,6 @@ def query_json(session: zenoh.Session, key: str, payload: dict | None = None, *,
     for reply in session.get(key, payload=body, timeout=timeout_s):
         if reply.ok is not None:
             return json.loads(reply.ok.payload.to_bytes())
-        raise RuntimeError(f"{key}: error reply {reply.err.payload.to_bytes()!r}")
+        err = reply.err.payload.to_bytes() if reply.err is not None else b""
+        raise RuntimeError(f"{key}: error reply {err!r}")
     raise RuntimeError(f"{key}: no reply within {timeout_s} s")

@@ -161,7 +161,8 @@ class Bridge(BridgeFaults, BridgeControl):
         self._tip_fingers = tip_finger_bodies(self.scene)
         self._object_home = self._home_pose(obj)
         self._attach_surface(obj)
-        q = self.hand.open_pose if getattr(self, "_q_target", None) is None else self._q_target
+        q_target = getattr(self, "_q_target", None)   # None before the first frame's target
+        q = self.hand.open_pose if q_target is None else q_target
         self.scene.set_hand_joints(q)
         self.scene.set_hand_ctrl(q)
         self._park_hand()  # above the table until the first frame arrives

@@ -58,7 +58,7 @@ import time
 from collections import Counter, deque
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import zenoh
@@ -139,6 +139,12 @@ class BridgeControl:
     counts: Counter[str]
     loop_running: bool
     _lock: threading.Lock
+    if TYPE_CHECKING:   # the host's read-only property (Bridge.sim_time_s), typed for this mixin
+        @property
+        def sim_time_s(self) -> float: ...
+    if TYPE_CHECKING:   # the host's read-only property (Bridge.view_active), typed for this mixin
+        @property
+        def view_active(self) -> bool: ...
     _wake: threading.Event
     _queue: deque[tuple[HandFrame, float]]
     _latest: tuple[HandFrame, float] | None
@@ -153,10 +159,8 @@ class BridgeControl:
     _last_seq: int | None
     _t0_wall: float | None
     _steps_done: int
-    sim_time_s: float
     _begin_entry: Callable[[str], None]
     _entry_after_placement: Callable[[], None]
-    view_active: bool
     _build_scene: Callable[[str], None]
     _notify: Callable[[str, dict[str, Any]], None]
 

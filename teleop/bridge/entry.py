@@ -50,7 +50,7 @@ import math
 import threading
 import weakref
 from collections import Counter
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
@@ -99,7 +99,7 @@ class ContactSwitch:
         self._contype = m.geom_contype[self._obj].copy()
         self._conaffinity = m.geom_conaffinity[self._obj].copy()
         rest = np.flatnonzero(~scene.hand_geom_mask & ~scene.obj_geom_mask)
-        supports = [g for g in rest if _collide(m, g, self._obj).any()]
+        supports = [g for g in rest if _collide(m, int(g), self._obj).any()]
         m.geom_contype[supports] |= self._bit       # no one else has the bit: unchanged with on
         m.geom_conaffinity[supports] |= self._bit
         self.off = False
@@ -151,7 +151,9 @@ class BridgeEntry:
     config: BridgeConfig
     scene: Scene
     counts: Counter[str]
-    sim_time_s: float
+    if TYPE_CHECKING:   # the host's read-only property (Bridge.sim_time_s), typed for this mixin
+        @property
+        def sim_time_s(self) -> float: ...
     _lock: threading.Lock
     _last_result: Any
     _last_frame: Any

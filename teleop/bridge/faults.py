@@ -49,7 +49,7 @@ import time
 from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
@@ -108,8 +108,10 @@ class BridgeFaults(BridgeEntry, ObjectWatch, SurfaceFeed):
     object_name: str
     object_mode: str
     counts: Counter[str]
-    sim_time_s: float
     _lock: threading.Lock
+    if TYPE_CHECKING:   # the host's read-only property (Bridge.sim_time_s), typed for this mixin
+        @property
+        def sim_time_s(self) -> float: ...
     _recorder: SessionRecorder | None
     _recording_path: Path | None
     _pub_events: zenoh.Publisher

@@ -227,7 +227,10 @@ class FoxgloveLive:
         if scene.obj is not None:
             name = scene.obj.name
             if name not in self._meshes:
-                self._meshes[name] = scene.obj.surface_mesh().export(file_type="glb")
+                glb = scene.obj.surface_mesh().export(file_type="glb")
+                if not isinstance(glb, bytes):   # trimesh types export() for every format
+                    raise TypeError(f"trimesh exported a {type(glb).__name__}, not glb bytes")
+                self._meshes[name] = glb
             out.append(foxglove.scene_entity(
                 "object", t_ns, frame_id=schemas.FRAME_OBJECT, frame_locked=True,
                 models=[foxglove.model("", (0, 0, 0), (1, 0, 0, 0), data=self._meshes[name],

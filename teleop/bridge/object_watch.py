@@ -27,7 +27,7 @@ import logging
 import threading
 from collections import Counter
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -63,8 +63,10 @@ class ObjectWatch:
     scene: Scene
     object_name: str
     counts: Counter[str]
-    sim_time_s: float
     _lock: threading.Lock
+    if TYPE_CHECKING:   # the host's read-only property (Bridge.sim_time_s), typed for this mixin
+        @property
+        def sim_time_s(self) -> float: ...
     _place_object: Callable[[], Placement]
     _notify: Callable[[str, dict[str, Any]], None]
 

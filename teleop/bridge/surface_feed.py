@@ -45,7 +45,9 @@ class SurfaceFeed:
     scene: Scene
     config: BridgeConfig
     retargeter: Retargeter
-    sim_time_s: float
+    if TYPE_CHECKING:   # the host's read-only property (Bridge.sim_time_s), typed for this mixin
+        @property
+        def sim_time_s(self) -> float: ...
     _last_contacts: list[ContactRecord]
     _surface: ObjectSurface
     _assist: GraspAssist

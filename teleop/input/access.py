@@ -34,6 +34,7 @@ from collections.abc import Awaitable, Callable, Iterable
 from dataclasses import dataclass
 
 from aiohttp import web
+from aiohttp.typedefs import Middleware
 
 from teleop.input.background_server import WebIngestError
 from teleop.input.tls import local_addresses
@@ -114,8 +115,7 @@ def access_policy(host: str, token: str | None = None,
                         hosts=frozenset(n.lower().strip("[]") for n in names if n))
 
 
-def access_middleware(policy: AccessPolicy) -> Callable[[web.Request, Handler],
-                                                        Awaitable[web.StreamResponse]]:
+def access_middleware(policy: AccessPolicy) -> Middleware:
     """An aiohttp middleware refusing requests with a wrong Host (421), a foreign Origin (403)
     or, on :data:`TOKEN_PATHS` when the token is required, no or a wrong ``token`` (401)."""
 

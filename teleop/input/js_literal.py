@@ -125,12 +125,12 @@ def _literal_start(text: str, name: str) -> int:
                 candidates.append(words[0])
     candidates.append(name)
     for local in candidates:
-        m = re.search(rf"(?<![\w$.]){re.escape(local)}\s*=(?![=>])\s*", text)
-        if m:
-            return m.end()
-    m = re.search(r"export\s+default\s*", text)
-    if m:
-        return m.end()
+        assigned = re.search(rf"(?<![\w$.]){re.escape(local)}\s*=(?![=>])\s*", text)
+        if assigned:
+            return assigned.end()
+    m_default = re.search(r"export\s+default\s*", text)
+    if m_default:
+        return m_default.end()
     stripped = len(text) - len(text.lstrip())
     if text[stripped:stripped + 1] in ("{", "["):
         return stripped

@@ -205,8 +205,8 @@ class StreamIngest:
             self._servers.append(tsrv)
         if not self._servers:
             raise ValueError("StreamIngest needs a udp_port or a tcp_port")
-        for srv in self._servers:
-            t = threading.Thread(target=srv.serve_forever, kwargs={"poll_interval": 0.2},
+        for server in self._servers:
+            t = threading.Thread(target=server.serve_forever, kwargs={"poll_interval": 0.2},
                                  name="dexaug-stream", daemon=True)
             t.start()
             self._threads.append(t)

@@ -52,7 +52,7 @@ from collections import Counter, deque
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import zenoh
@@ -246,7 +246,7 @@ class WebIngest:
                 if c is not None:
                     await c.ws.close(code=1001, message=b"bridge shutting down")
             self._server.stop(shutdown)
-        for ent in (*self._subs, self._pub):
+        for ent in cast("list[zenoh.Subscriber | zenoh.Publisher]", [*self._subs, self._pub]):
             with contextlib.suppress(Exception):
                 ent.undeclare()
         if self._own_session:

@@ -9,9 +9,8 @@ rotation). Units: metres.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
 import numpy as np
+from numpy.typing import ArrayLike
 
 from teleop.input import frames
 from teleop.messages import NUM_JOINTS, PALM, WRIST, HandFrame, HandState, MessageError
@@ -96,8 +95,8 @@ def from_webxr_joints(positions: Array, quats_xyzw: Array, radii: Array) -> Hand
     return HandState(pos, quat, rad, ok, tracked=bool(ok[WRIST]))
 
 
-def hand_frame_from_webxr(seq: int, time_s: float, head_position_xr: Sequence[float],
-                           head_quat_xyzw: Sequence[float],
+def hand_frame_from_webxr(seq: int, time_s: float, head_position_xr: ArrayLike,
+                           head_quat_xyzw: ArrayLike,
                            hands_xr: dict[str, tuple[Array, Array, Array]],
                            *, receive_time_s: float | None = None,
                            source: str = "webxr") -> HandFrame:

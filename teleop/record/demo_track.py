@@ -72,7 +72,7 @@ def _clock_ns(states: list[dict[str, Any]], t_ns: np.ndarray
     raw = [s.get("t_s") for s in states]
     if not all(_finite(t) for t in raw):
         return t_ns, None
-    t = np.array([round(float(v) * 1e9) for v in raw], np.int64)
+    t = np.array([round(float(v) * 1e9) for v in raw if v is not None], np.int64)   # all finite
     clock = t.copy()
     for j in np.flatnonzero(np.diff(t) < 0) + 1:  # the scene was rebuilt: sim time restarted
         clock[j:] += clock[j - 1] - clock[j] + (t_ns[j] - t_ns[j - 1])

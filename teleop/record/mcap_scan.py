@@ -31,6 +31,7 @@ from __future__ import annotations
 import struct
 import zlib
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import IO, Any
 
@@ -42,6 +43,7 @@ from mcap.records import (
     DataEnd,
     Footer,
     Header,
+    McapRecord,
     Message,
     MessageIndex,
     Metadata,
@@ -141,13 +143,15 @@ def parse_record(offset: int, opcode: int, content: bytes) -> Any:
     try:
         if opcode == Opcode.MESSAGE:
             return Message.read(stream, len(content))
-        parser = {Opcode.HEADER: Header, Opcode.FOOTER: Footer, Opcode.SCHEMA: Schema,
-                  Opcode.CHANNEL: Channel, Opcode.CHUNK: Chunk,
-                  Opcode.MESSAGE_INDEX: MessageIndex, Opcode.METADATA: Metadata,
-                  Opcode.DATA_END: DataEnd}.get(Opcode(opcode))
-        if parser is None:
+        parsers: dict[Opcode, Callable[[ReadDataStream], McapRecord]] = {
+            Opcode.HEADER: Header.read, Opcode.FOOTER: Footer.read, Opcode.SCHEMA: Schema.read,
+            Opcode.CHANNEL: Channel.read, Opcode.CHUNK: Chunk.read,
+            Opcode.MESSAGE_INDEX: MessageIndex.read, Opcode.METADATA: Metadata.read,
+            Opcode.DATA_END: DataEnd.read}
+        parse = parsers.get(Opcode(opcode))
+        if parse is None:
             return None  # index/summary records we do not need: skipped by length
-        record = parser.read(stream)
+        record = parse(stream)
     except (_Short, struct.error, UnicodeDecodeError, ValueError) as exc:
         raise McapCorrupt(offset, f"malformed {Opcode(opcode).name} record: {exc}") from None
     if raw.remaining and opcode in (Opcode.CHUNK, Opcode.MESSAGE_INDEX, Opcode.FOOTER,

@@ -76,7 +76,7 @@ def to_json_form(msg: Message) -> dict[str, Any]:
     ``Timestamp``/``Duration`` as ``{"sec", "nsec"}``, enums as numbers, bytes as base64."""
     desc: Descriptor = msg.DESCRIPTOR
     if desc.full_name in _TIME_TYPES:
-        return {"sec": int(msg.seconds), "nsec": int(msg.nanos)}   # type: ignore[attr-defined]
+        return {"sec": int(msg.seconds), "nsec": int(msg.nanos)}
     out: dict[str, Any] = {}
     for field in desc.fields:
         value = getattr(msg, field.name)

@@ -396,5 +396,5 @@ class SessionRecorder:
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
                  tb: object) -> None:
-        self.close(reason="closed" if exc is None else f"exception: {exc_type.__name__}: {exc}")
+        self.close(reason="closed" if exc is None else f"exception: {type(exc).__name__}: {exc}")
 

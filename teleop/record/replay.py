@@ -39,7 +39,8 @@ def hands_publisher(session: zenoh.Session, rig: str, wait_for_subscriber_s: flo
                                     congestion_control=zenoh.CongestionControl.BLOCK,
                                     reliability=zenoh.Reliability.RELIABLE)
     t_end = time.perf_counter() + wait_for_subscriber_s
-    while not pub.matching_status.matching:
+    # zenoh's stub types matching_status as bool; it is a MatchingStatus (.matching)
+    while not pub.matching_status.matching:  # type: ignore[attr-defined]
         if time.perf_counter() >= t_end:
             logger.warning("replay: no subscriber on %s after %.1f s; publishing anyway",
                            pub.key_expr, wait_for_subscriber_s)
@@ -63,7 +64,8 @@ def play(pub: zenoh.Publisher, items: Iterable[tuple[float, bytes]], rate: float
     """Publish (time_s, payload) pairs with the timing of ``rate``; returns the count."""
     check_rate(rate)
     n = 0
-    t0_wall = t0_msg = None
+    t0_wall: float | None = None   # the first frame's wall and message times (s)
+    t0_msg = 0.0
     for t_s, payload in items:
         if rate != "max":
             if t0_wall is None:

@@ -306,7 +306,7 @@ class Retargeter:
         rel = ((pad_points(pos[tips], hand.orientations_wxyz[tips], radii) - p_w) @ r_w
                if self.config.pad_targets else centres)
         pinch = None
-        if self._pinch_task is not None:
+        if self._pinch_task is not None and self._thumb_row is not None:
             rel, pinch = pinch_adjust(rel, centres, radii, self._thumb_row, self._other_rows,
                                       self.config.pinch_release_gap_m)
         targets = self._p_bw + rel @ self._m_wb       # base frame, scaled about the wrist

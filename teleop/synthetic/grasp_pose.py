@@ -177,7 +177,7 @@ def _fill_unmapped(pose: HandPose, mapped_joints: Iterable[str]) -> None:
 
 def _generic_grasp(robot: Hand, human: HumanHand, corr: Correspondence, scale: float,
                    object_name: str, obj_pos: Array, obj_rot: Array,
-                   press_m: float, grip_friction: float
+                   press_m: float | Array, grip_friction: float
                    ) -> tuple[Array, Array, HandPose, dict[str, float]]:
     """The searched generic grasp (:func:`teleop.synthetic.grasp_search.search_grasp`) as an
     operator wrist pose and hand pose; residuals: the mapped tips' signed surface distances

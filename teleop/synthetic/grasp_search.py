@@ -160,7 +160,8 @@ def _reachable(robot: Hand, corr: Correspondence, tips_palm: Array
     q = robot.fill_coupled(np.random.default_rng(0).uniform(
         robot.lower, robot.upper, (_REACH_SAMPLES, robot.nq)))
     samples = robot.fingertip_sites(q, frame="palm")                       # (M, nf, 3)
-    out, links = tips_palm.copy(), []
+    out = tips_palm.copy()
+    links: list[Array | None] = []
     by_human = {finger_of(j): r for r, j in corr.mapping.fingers.items()}
     for k, f in enumerate(FINGERS):
         if f not in by_human:
@@ -179,9 +180,9 @@ def _placements(verts: Array, centre: Array, rots: Array) -> tuple[Array, Array]
     """Palm positions (N, 3) and axes (N, 3, 3) over frames × gaps × backs."""
     normal, along = rots[:, :, 1], rots[:, :, 2]
     extent = np.max((centre - verts) @ normal.T, axis=0)                 # (R,) toward the palm
-    r, g, b = np.meshgrid(np.arange(len(rots)), np.arange(len(_GAPS_M)),
-                          np.arange(len(_BACKS_M)), indexing="ij")
-    r, g, b = r.ravel(), g.ravel(), b.ravel()
+    grid = np.meshgrid(np.arange(len(rots)), np.arange(len(_GAPS_M)),
+                       np.arange(len(_BACKS_M)), indexing="ij")
+    r, g, b = (axis.ravel() for axis in grid)
     pos = (centre - normal[r] * (extent[r] + _GAPS_M[g])[:, None]
            - along[r] * _BACKS_M[b][:, None])
     return pos, rots[r]

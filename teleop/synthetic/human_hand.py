@@ -28,6 +28,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from sim.transforms import axis_angle_to_mat, frame_from_x
 from teleop.messages import JOINT_INDEX, NUM_JOINTS, OPENXR_JOINTS
@@ -87,7 +88,7 @@ _Y_AXIS = np.array([0.0, 1.0, 0.0])
 _Z_AXIS = np.array([0.0, 0.0, 1.0])
 
 
-def _rotations(axis: Array, angles_rad: Array) -> Array:
+def _rotations(axis: Array, angles_rad: ArrayLike) -> Array:
     """Rotation matrices (n,3,3) about one unit ``axis`` by each of ``angles_rad`` (n,)."""
     angles = np.asarray(angles_rad, dtype=float)
     return axis_angle_to_mat(np.broadcast_to(axis, (len(angles), 3)), angles)

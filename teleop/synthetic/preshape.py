@@ -45,7 +45,7 @@ Units: metres, seconds.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -81,6 +81,8 @@ class Obstacles:
     table_z_m: float
     points_m: Array
     normals: Array
+    #: a k-d tree over ``points_m``, built once (``__post_init__``)
+    _tree: cKDTree = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "_tree", cKDTree(self.points_m))

@@ -49,7 +49,7 @@ def write_session(frames: Sequence[HandFrame] | SynthEpisode, path: Path | str,
                          start_time_ns=epoch_ns) as rec:
         marked = grasp_time_s is None
         for frame in frame_list:
-            if not marked and frame.device_time_s >= grasp_time_s:
+            if not marked and grasp_time_s is not None and frame.device_time_s >= grasp_time_s:
                 rec.write_event("grasp_mark", {"source": "synth", "device_time_s": grasp_time_s},
                                 log_time_ns=log_ns(frame.receive_time_s))
                 marked = True
