@@ -63,7 +63,7 @@ test: $(TEST_STAMP) gl browser
 	$(BIN)/mypy
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile --durations=15
 
-# The quick tier (~1 min on 2 cores): every test but those marked slow (files over ~5 s) or
+# The quick tier (~30 s on 2 cores): every test but those marked slow (files over ~3 s) or
 # browser (headless Chromium); for the edit-test loop. `make test` is what CI runs.
 test-fast: $(TEST_STAMP) gl
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile -m "not slow and not browser" --durations=5

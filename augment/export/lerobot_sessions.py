@@ -2,10 +2,9 @@
 
 Why: the sessions a person records through the bridge are the demonstrations augmentation
 starts from; exported with the rollouts' writer (:mod:`augment.export.lerobot`) they train a
-policy in LeRobot as they were performed. The steps come from
-:func:`teleop.record.session_steps.read_session_steps` (the reading of the file, its
-``SessionSteps``); this module only says what a frame of them is, so it names the fields it
-takes (:class:`Steps`) rather than importing teleop (``augment`` sits below it).
+policy in LeRobot as they were performed. The steps are a
+:class:`sim.session_steps.SessionSteps`, as :func:`teleop.record.session_steps.read_session_steps`
+reads them from the file; this module only says what a frame of them is.
 
 Frame t is step t of the session, at the recording's rate (the bridge's step, 12 ms today:
 83.33… frames a second; ``fps`` is written as that number, an int only where the rate is
@@ -31,44 +30,22 @@ attempt, not a validated rollout), hence no ``next.success``.
 from __future__ import annotations
 
 import json
-from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
 from augment.export.lerobot_episode import LeRobotEpisode
 from augment.export.lerobot_frames import POSE_NAMES, task_text
 from sim.errors import DexaugError
+from sim.session_steps import SessionSteps
 
-__all__ = ["Steps", "session_episode", "session_fps"]
+__all__ = ["session_episode", "session_fps"]
 
 #: how far a step may stray from the session's step and still count as the same rate (ns)
 STEP_TOLERANCE_NS = 1000
 
 
-class Steps(Protocol):
-    """What a session's steps hold (``teleop.record.session_steps.SessionSteps``)."""
-
-    path: Path
-    hand: str
-    object: str
-    joint_names: tuple[str, ...]
-    finger_names: tuple[str, ...]
-    clock_ns: np.ndarray
-    qpos: np.ndarray
-    q_target: np.ndarray
-    palm_pose: np.ndarray
-    object_pose: np.ndarray
-    tracked: np.ndarray
-    touching: np.ndarray | None
-    extras: dict[str, np.ndarray]
-    metadata: dict[str, Any]
-    grasp_marks: list[dict[str, Any]]
-
-    def __len__(self) -> int: ...
-
-
-def session_fps(steps: Steps) -> int | float:
+def session_fps(steps: SessionSteps) -> int | float:
     """Frames a second of a session whose steps are evenly spaced (module docstring); a
     one-line error where they are not (a dropped or doubled step) or there is only one."""
     dt = np.diff(steps.clock_ns)
@@ -82,7 +59,7 @@ def session_fps(steps: Steps) -> int | float:
     return round(fps) if abs(fps - round(fps)) < 1e-9 else fps
 
 
-def _features(steps: Steps) -> dict[str, dict[str, Any]]:
+def _features(steps: SessionSteps) -> dict[str, dict[str, Any]]:
     def vec(names: list[str]) -> dict[str, Any]:
         return {"dtype": "float64", "shape": [len(names)], "names": names}
 
@@ -100,7 +77,7 @@ def _features(steps: Steps) -> dict[str, dict[str, Any]]:
     return out
 
 
-def session_episode(steps: Steps) -> LeRobotEpisode:
+def session_episode(steps: SessionSteps) -> LeRobotEpisode:
     """The session's steps as the LeRobot writer's episode (module docstring)."""
     n = len(steps)
     fps = session_fps(steps)
