@@ -151,7 +151,7 @@ def measure(objects: list[str], methods: list[str], workspaces: list[str], *, n:
                 res = generate_grasps(hand, cloud, ws, n=n, seed=seed, time_budget_s=budget_s,
                                workers=workers, finger_names=demo_fingers(demo) if demo else None,
                                hold_protocol=None,  # the paper's method: ranked by ε
-                               **VARIANTS[method])  # type: ignore[arg-type]
+                               **VARIANTS[method])
                 wall = time.perf_counter() - t0
                 k = len(res.grasps)
                 row = Row(name, mode, method, k, n, res.stopped)
@@ -163,13 +163,13 @@ def measure(objects: list[str], methods: list[str], workspaces: list[str], *, n:
                     row.epsilon = float(np.mean([r.epsilon for r in valid])) if valid else math.nan
                     row.volume = float(np.mean([r.volume for r in valid])) if valid else math.nan
                     row.valid_pct = 100.0 * len(valid) / k
-                    row.lift_drop_pct = 100.0 * np.mean([r.passed for r in ld])
+                    row.lift_drop_pct = 100.0 * float(np.mean([r.passed for r in ld]))
                     row.penetration_mm = 1e3 * float(np.mean([r.penetration_m for r in ld]))
                     dgb = validate_many(hand.name, name, grasps, "dgb", workers=workers)
-                    row.dgb_pct = 100.0 * np.mean([r.passed for r in dgb])
+                    row.dgb_pct = 100.0 * float(np.mean([r.passed for r in dgb]))
                     if six_dir:
                         sd = validate_many(hand.name, name, grasps, "six-dir", workers=workers)
-                        row.six_dir_pct = 100.0 * np.mean([r.passed for r in sd])
+                        row.six_dir_pct = 100.0 * float(np.mean([r.passed for r in sd]))
                     row.palm_spread_mm, row.joint_spread_deg = _diversity(res.grasps, joint_mask)
                 rows.append(row)
                 if on_row is not None:

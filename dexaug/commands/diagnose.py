@@ -11,7 +11,7 @@ import argparse
 import json
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rich.console import Console
 from rich.progress import Progress
@@ -23,6 +23,9 @@ from dexaug.commands.guards import dataset_file, did_you_mean, require_writable
 from dexaug.commands.registry import command
 from dexaug.pipeline.protocol_facts import DEFAULT_PROTOCOL, diagnosable, diagnosis
 from sim.errors import DexaugError
+
+if TYPE_CHECKING:
+    from augment.grasp_table import ObjectTable
 
 __all__ = ["diagnose", "diagnose_dataset"]
 
@@ -121,7 +124,7 @@ def diagnose_dataset(path: Path, console: Console, *, object_name: str | None = 
 
     replay = diagnosis(protocol)
     summary_table = _SUMMARY_TABLES[replay.module]
-    tables = dataset.load(path)
+    tables: dict[str, ObjectTable] = dataset.load(path)
     if object_name is not None:
         if object_name not in tables:
             raise DexaugError(f"{path}: no object {object_name!r}; it holds {sorted(tables)}"

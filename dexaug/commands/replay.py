@@ -133,7 +133,8 @@ def _wait_for_bridge(session: zenoh.Session, rig: str, wait_s: float, ports: Seq
     listener = pub.declare_matching_listener(
         lambda status: matched.set() if status.matching else None)
     try:
-        if not (pub.matching_status.matching or matched.wait(wait_s)):
+        # zenoh's stub types matching_status as bool; it is a MatchingStatus (.matching)
+        if not (pub.matching_status.matching or matched.wait(wait_s)):  # type: ignore[attr-defined]
             where = ", ".join(f"tcp/127.0.0.1:{p}" for p in ports)
             raise NetworkError(f"no bridge subscribed to {key} within {wait_s:g} s (connecting "
                                f"to {where}): start `dexaug bridge` first (same --rig), or "

@@ -13,7 +13,7 @@ from collections.abc import Callable, Iterator, Sequence
 from typing import TYPE_CHECKING
 
 from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TaskID, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from dexaug.commands.argtypes import count
@@ -39,7 +39,7 @@ def progress_bars(console: Console) -> Progress:
 
 def stage_ticker(bar: Progress) -> Callable[[str, int, int], None]:
     """A pipeline progress callback that keeps one bar per stage (workspace, fsg, …)."""
-    tasks: dict[str, int] = {}
+    tasks: dict[str, TaskID] = {}
 
     def tick(stage: str, done: int, total: int) -> None:
         if stage not in tasks:
@@ -264,7 +264,8 @@ def put_on_arm(summaries: Sequence[DemoSummary], args: argparse.Namespace, conso
     from sim.errors import DexaugError
 
     placements = arm_placements(args)
-    rows, failed = [], 0
+    rows: list[ArmRow] = []
+    failed = 0
     if placements is None:
         return rows, failed
     for s in summaries:

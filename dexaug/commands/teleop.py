@@ -85,7 +85,7 @@ def retarget(args: argparse.Namespace, console: Console) -> int:
                   f"{summary['step_p99_s'] * 1e3:.2f} ms p99")
     if args.out:
         with atomic_path(args.out) as tmp, tmp.open("wb") as f:
-            np.savez(f, **trace.as_dict())
+            np.savez(f, **trace.as_dict())  # type: ignore[arg-type]  # numpy stubs type **kwds as allow_pickle's bool
         console.print(f"wrote {args.out}")
     return 0
 

@@ -8,7 +8,9 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from rich.console import Console
@@ -19,6 +21,9 @@ from rich.text import Text
 from dexaug.commands.guards import object_name, require_writable
 from dexaug.commands.options import hand_arg
 from dexaug.commands.registry import command
+
+if TYPE_CHECKING:
+    from sim.validate.result import ValidationResult
 
 __all__ = ["run_reference_validation", "validate"]
 
@@ -37,7 +42,7 @@ def _validate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", type=Path, help="write the full results as JSON")
 
 
-def _result_table(rows: list[tuple[str, str, object]]) -> Table:
+def _result_table(rows: Sequence[tuple[str, str, tuple[ValidationResult, float]]]) -> Table:
     table = Table(title="grasp validation")
     for col in ("grasp", "object", "protocol", "result", "reason", "contacts", "pen. (mm)",
                 "disp. (mm)", "rot. (°)", "GWS ε", "GWS vol.", "time (s)"):

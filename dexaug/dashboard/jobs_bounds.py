@@ -67,5 +67,5 @@ def parse_augment_request(body: Any, opts: AugmentOptions) -> tuple[str, Augment
         names = ", ".join(repr(u)[:40] for u in unknown[:5])
         raise AugmentRequestError(f"unknown field(s) {names}; expected demo, "
                                   f"{', '.join(AUGMENT_FIELDS)}")
-    changes = {f: _bounded(f, body[f]) for f in AUGMENT_FIELDS if f in body}
+    changes: dict[str, Any] = {f: _bounded(f, body[f]) for f in AUGMENT_FIELDS if f in body}
     return str(body["demo"]), dataclasses.replace(opts, **changes)

@@ -25,6 +25,7 @@ package versions, and the joint names of arm and hand.
 
 from __future__ import annotations
 
+import functools
 import json
 from collections import Counter
 from collections.abc import Callable
@@ -35,7 +36,7 @@ import h5py
 import numpy as np
 
 from augment import dataset
-from augment.grasp_table import grasps_of
+from augment.grasp_table import ObjectTable, grasps_of
 from dexaug.pipeline.arm_report import ArmReportPart, write_arm_report
 from dexaug.pipeline.rest_grasps import RestGrasps
 from sim.arm.config import load_arm_config
@@ -117,6 +118,20 @@ def table_demo(path: Path, name: str, table: dataset.ObjectTable) -> Demo | None
     return None
 
 
+def _stages_of(progress: Callable[[str, int, int], None] | None,
+               name: str) -> Callable[[str, int, int], None] | None:
+    """``progress`` with each stage named after the object ``name`` (one bar per object and
+    stage when several objects are put on the arm), or None without a callback."""
+    if progress is None:
+        return None
+    report = progress
+
+    def tick(stage: str, done: int, total: int) -> None:
+        report(f"{name} {stage}", done, total)
+
+    return tick
+
+
 def run_arm(grasps_path: Path, arm_name: str, out: Path, *, placements: int, seed: int = 0,
             object_name: str | None = None, max_grasps: int | None = None,
             progress: Callable[[str, int, int], None] | None = None,
@@ -130,7 +145,7 @@ def run_arm(grasps_path: Path, arm_name: str, out: Path, *, placements: int, see
     ``gallery`` images of held grasps per object."""
     if grasps_from not in GRASP_SOURCES:
         raise DexaugError(f"grasps_from {grasps_from!r}: expected one of {GRASP_SOURCES}")
-    tables = dataset.load(grasps_path)
+    tables: dict[str, ObjectTable] = dataset.load(grasps_path)
     if object_name is not None:
         if object_name not in tables:
             raise DexaugError(f"{grasps_path}: no table for object {object_name!r} "
@@ -155,11 +170,10 @@ def run_arm(grasps_path: Path, arm_name: str, out: Path, *, placements: int, see
                 raise DexaugError(str(exc)) from None
             source = RestGrasps(
                 hand, obj, demo, n=len(grasps), seed=seed, workers=workers,
-                progress=(lambda stage, done, total, name=name: progress(f"{name} {stage}", done, total))
-                if progress else None)
+                progress=_stages_of(progress, name))
         _, results = evaluate_on_arm(
             arm, hand, obj, source, placements=placements, seed=seed,
-            progress=(lambda done, total, name=name: progress(name, done, total)) if progress else None)
+            progress=functools.partial(progress, name) if progress else None)
         planned = [r for r in results if r.times_s is not None]
         seconds = sum(r.plan_s + r.sim_s for r in results)
         summaries.append(ArmRunSummary(

@@ -28,6 +28,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
+import math
 import time
 from collections import Counter
 from collections.abc import Callable
@@ -86,12 +87,12 @@ def generate_grasps(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: Works
     through here."""
     exact = ScenePenetration.of(hand.name, obj.name) if link_penetration else None
     hold = effort = None
-    asset = obj if isinstance(obj, ObjectAsset) else None
+    mass_kg = math.nan  # for the warning below, which needs the hold protocol's asset
     if hold_protocol is not None:
-        asset = asset or load_object(obj.name)
+        asset = obj if isinstance(obj, ObjectAsset) else load_object(obj.name)
+        mass_kg = asset.mass_kg
         hold = hold_loads(asset, hold_protocol)
         effort = SceneEffort(hand.name, obj.name, hold_protocol)
-    if hold_protocol is not None:
         params = kwargs.get("params") or load_fsg_params(hand.config)
         kwargs["params"] = dataclasses.replace(
             params, hold_oversample=hold_oversample(params, hold_protocol))
@@ -104,7 +105,7 @@ def generate_grasps(hand: Hand, obj: ObjectAsset | ObjectCloud, workspace: Works
                     "%.3g× the actuators' force limits to hold it (max_actuator_effort; above "
                     "it grasps seldom hold in simulation); this hand's fingertip grasps are unlikely "
                     "to (more fingers, a power grasp or a stronger hand are needed)",
-                    obj.name, asset.mass_kg, hold_protocol,
+                    obj.name, mass_kg, hold_protocol,
                     res.stats.get("effort", 0),
                     (kwargs.get("params") or load_fsg_params(hand.config)).max_actuator_effort)
     elif effort is not None:

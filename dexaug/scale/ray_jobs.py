@@ -142,6 +142,7 @@ def run_on_ray(units: Sequence[Unit], out_root: Path | str, *, chunk: int = DEFA
     def write(i: int) -> None:
         st = states[i]
         c = st.computed
+        assert c is not None, "a unit is written only after its computation returned"
         if st.chunks:
             c.validation = [r for k in range(st.chunks) for r in st.parts[k]]
         c.timings_s["validate"] = time.perf_counter() - st.t_validate if st.chunks else 0.0

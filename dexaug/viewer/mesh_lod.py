@@ -28,8 +28,7 @@ def cluster_vertices(vertices: np.ndarray, faces: np.ndarray,
     _, cell = np.unique(keys, axis=0, return_inverse=True)
     cell = cell.ravel()
     counts = np.bincount(cell)
-    merged = np.column_stack([np.bincount(cell, weights=v[:, k]) for k in range(3)])
-    merged /= counts[:, None]
+    merged = np.column_stack([np.bincount(cell, weights=v[:, k]) for k in range(3)]) / counts[:, None]
     f = cell[f]
     f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])]
     _, first = np.unique(np.sort(f, axis=1), axis=0, return_index=True)

@@ -11,6 +11,7 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TypedDict
 
 import numpy as np
 
@@ -18,7 +19,7 @@ from teleop.messages import HandFrame
 from teleop.retarget.result import RetargetResult
 from teleop.retarget.retargeter import Retargeter
 
-__all__ = ["RetargetTrace", "retarget_frames", "summarise_errors"]
+__all__ = ["FingerErrors", "RetargetSummary", "RetargetTrace", "retarget_frames", "summarise_errors"]
 
 Array = np.ndarray
 
@@ -76,12 +77,31 @@ def retarget_frames(retargeter: Retargeter, frames: Sequence[HandFrame]) -> Reta
         held=np.array([r.held for r in results], dtype=bool), step_time_s=times)
 
 
-def summarise_errors(trace: RetargetTrace) -> dict[str, object]:
+class FingerErrors(TypedDict):
+    """One finger's fingertip error over the live frames, metres (NaN when none was live)."""
+
+    median_m: float
+    p95_m: float
+    max_m: float
+
+
+class RetargetSummary(TypedDict):
+    """What :func:`summarise_errors` returns and ``dexaug retarget`` prints: typed because it
+    crosses from ``teleop`` to the CLI and the tests read its keys."""
+
+    frames: int
+    held: int
+    fingers: dict[str, FingerErrors]
+    step_median_s: float
+    step_p99_s: float
+
+
+def summarise_errors(trace: RetargetTrace) -> RetargetSummary:
     """Fingertip error statistics (metres) per finger over the frames not held, plus frame
     counts and per-step latency (seconds): what ``dexaug retarget FILE`` reports."""
     live = ~trace.held
     err = trace.tip_errors_m[live]
-    per_finger = {}
+    per_finger: dict[str, FingerErrors] = {}
     for k, name in enumerate(trace.finger_names):
         e = err[:, k] if len(err) else np.empty(0)
         per_finger[name] = ({"median_m": float(np.median(e)), "p95_m": float(np.percentile(e, 95)),
