@@ -29,14 +29,15 @@ IMAGE_PREFIX = "observation.images."
 class LeRobotEpisode:
     """One episode's frames: ``columns`` (feature → array, rows = frames; ``timestamp`` in
     seconds from the first frame), their ``features`` (info.json's dtype, shape, names),
-    the ``task`` text, the frame rate ``fps`` (frames a second: an int where the rate is a
-    whole number), the ``robot_type``, and ``meta``: the source's own ``dexaug/...`` columns
-    of its meta/episodes row."""
+    the ``task`` text, the frame rate ``fps`` (frames a second, a whole number: LeRobot's
+    info.json and its timestamp check take no other; sessions are resampled to one,
+    :mod:`.lerobot_sessions`), the ``robot_type``, and ``meta``: the source's own
+    ``dexaug/...`` columns of its meta/episodes row."""
 
     columns: dict[str, np.ndarray]
     features: dict[str, dict[str, Any]]
     task: str
-    fps: int | float
+    fps: int
     robot_type: str
     meta: dict[str, Any] = field(default_factory=dict)
 

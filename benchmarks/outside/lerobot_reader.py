@@ -22,7 +22,9 @@ def check_lerobot(root: Path, expected: Path) -> dict[str, Any]:
     (an .npz of the episodes' ``observation.state``, ``action``, ``episode_index`` rows, and
     per camera its (frames, h, w, 3) uint8 images where the export has one). Its table holds
     float64 exactly; its items are torch tensors (float32 of the same; images (3, h, w) in
-    [0, 1], what LeRobot makes of a PNG); the fps may be a non-integer (a session's)."""
+    [0, 1], what LeRobot makes of a PNG). The fps must be an int (LeRobot types it so): its
+    type is reported, and every frame's stored ``timestamp`` against ``frame_index / fps``
+    within the dataset's ``tolerance_s`` (the sync LeRobot's timestamps promise)."""
     import importlib.metadata
 
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
@@ -37,6 +39,11 @@ def check_lerobot(root: Path, expected: Path) -> dict[str, Any]:
                            "codebase_version": ds.meta.info["codebase_version"],
                            "episodes": ds.num_episodes, "frames": len(ds), "fps": ds.fps,
                            "load_s": load_s}
+    out["fps_is_int"] = type(ds.fps) is int
+    lag_s = np.abs(table["timestamp"].to_numpy().astype(np.float64)
+                   - table["frame_index"].to_numpy() / ds.fps)
+    out["timestamp_max_error_s"] = float(lag_s.max())
+    out["timestamps_within_tolerance"] = bool(lag_s.max() <= ds.tolerance_s)
     for k in ("observation.state", "action", "episode_index"):
         col = table[k].combine_chunks()
         got = (col.to_numpy() if k == "episode_index"

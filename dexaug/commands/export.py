@@ -15,6 +15,7 @@ from rich.console import Console
 from rich.text import Text
 
 from augment.export import FORMATS
+from dexaug.commands.argtypes import int_at_least
 from dexaug.commands.guards import dataset_file, did_you_mean, require_writable
 from dexaug.commands.registry import command
 from sim.errors import DexaugError, UsageError
@@ -45,6 +46,7 @@ def camera_size(text: str) -> tuple[int, int]:
 
 
 def _export_args(p: argparse.ArgumentParser) -> None:
+    from augment.export.lerobot_sessions import SESSION_FPS
     from sim.validate.config import SQUEEZE_CONVENTIONS
 
     p.add_argument("dataset", type=_source, nargs="+", metavar="DATASET|SESSION.mcap",
@@ -62,7 +64,7 @@ def _export_args(p: argparse.ArgumentParser) -> None:
                         "grasp rolled out by lift-drop, the successful rollouts as episodes of "
                         "a LeRobot dataset (format v3.0, a folder; failed ones listed in its "
                         "failed_rollouts.json; needs the extra dexaug[lerobot]); of sessions, "
-                        "one episode each at the recording's rate")
+                        "one episode each, resampled to --fps")
     p.add_argument("--out", type=Path, required=True,
                    help="file to write (replaced atomically); for bodex and lerobot a folder "
                         "(replaced whole, only if it is empty or an earlier export of that "
@@ -72,6 +74,11 @@ def _export_args(p: argparse.ArgumentParser) -> None:
                         "(the overview camera, HEIGHTxWIDTH pixels, e.g. 64x64) into the "
                         "feature observation.images.overview (PNG in the parquet); offscreen "
                         "rendering costs milliseconds to tenths of a second a frame")
+    p.add_argument("--fps", type=int_at_least(1), default=None,
+                   help="lerobot, sessions: frames a second of each episode (LeRobot's fps is "
+                        "a whole number; the bridge steps at 83.33 Hz): frame k holds the "
+                        "latest recorded step at or before k/FPS s, no interpolation; at most "
+                        f"the session's step rate; default {SESSION_FPS}")
     p.add_argument("--object", help="only this object's table (default: every object)")
     p.add_argument("--rejected", action="store_true",
                    help="also the grasps that failed validation (their verdict says so); "
@@ -156,7 +163,7 @@ def fsg_mesh_transforms(names: list[str]) -> dict[str, list[float]]:
 
 def _refuse_options(args: argparse.Namespace, sessions: bool) -> None:
     """Options that mean nothing for the chosen format (or for sessions, which have no
-    tables and render nothing) are refused rather than ignored."""
+    tables, render nothing and alone take a frame rate) are refused rather than ignored."""
     allowed = {"dexgraspbench": {"object_pose", "object", "rejected"},
                "npz": {"object", "rejected"},
                "fsg": {"object_frame", "object_transform", "object", "rejected"},
@@ -164,9 +171,10 @@ def _refuse_options(args: argparse.Namespace, sessions: bool) -> None:
                          "rejected"},
                "lerobot": {"camera", "object", "rejected"}}[args.format]
     if sessions:
-        allowed = set()
-    given = {"camera": args.camera is not None, "object": args.object is not None,
-             "rejected": args.rejected, "object_pose": args.object_pose is not None,
+        allowed = {"fps"}
+    given = {"fps": args.fps is not None, "camera": args.camera is not None,
+             "object": args.object is not None, "rejected": args.rejected,
+             "object_pose": args.object_pose is not None,
              "object_frame": args.object_frame != "dexaug",
              "object_transform": args.object_transform is not None,
              "squeeze_convention": args.squeeze_convention is not None,
@@ -192,8 +200,8 @@ def export(args: argparse.Namespace, console: Console) -> int:
     rolls every grasp out by lift-drop and writes the successful episodes in LeRobot's
     format v3.0 (augment.export.lerobot, docs/learning.md; tests/test_export_lerobot.py),
     with ``--camera HxW`` an image of every frame too; recorded sessions (``.mcap``) go to
-    lerobot only, one episode each (augment.export.lerobot_sessions;
-    tests/test_export_lerobot_sessions.py).
+    lerobot only, one episode each, resampled to ``--fps`` by sample and hold
+    (augment.export.lerobot_sessions; tests/test_export_lerobot_sessions.py).
     """
     from augment import export as ex
 
@@ -201,7 +209,7 @@ def export(args: argparse.Namespace, console: Console) -> int:
     _refuse_options(args, bool(sessions))
     require_writable(args.out, "--out", folder=args.format in ("bodex", "lerobot"))
     if sessions:
-        return _export_sessions(args.out, sessions, console)
+        return _export_sessions(args.out, sessions, args.fps, console)
     args.dataset = args.dataset[0]
     tables = _tables(args.dataset, args.object, args.rejected)
     source = str(args.dataset)
@@ -254,22 +262,24 @@ def _sessions(args: argparse.Namespace) -> list[Path]:
     return sessions
 
 
-def _export_sessions(out: Path, sessions: list[Path], console: Console) -> int:
-    """Each session an episode of a LeRobot dataset (augment.export.lerobot_sessions); print
-    the count and the speed."""
+def _export_sessions(out: Path, sessions: list[Path], fps: int | None,
+                     console: Console) -> int:
+    """Each session an episode of a LeRobot dataset at ``fps`` (None: the default,
+    augment.export.lerobot_sessions); print the count and the speed."""
     import time
 
     from augment.export.lerobot import pyarrow_modules, write_lerobot
-    from augment.export.lerobot_sessions import session_episode
+    from augment.export.lerobot_sessions import SESSION_FPS, session_episode
     from teleop.record.session_steps import read_session_steps
 
     pyarrow_modules()
+    fps = SESSION_FPS if fps is None else fps
     start = time.perf_counter()
-    episodes = (session_episode(read_session_steps(p)) for p in sessions)
+    episodes = (session_episode(read_session_steps(p), fps) for p in sessions)
     done = write_lerobot(out, episodes, source=", ".join(map(str, sessions)))
     wall_s = time.perf_counter() - start
-    console.print(Text(f"wrote {done.episodes} session episode(s) ({done.frames} frames) to "
-                       f"{out} (lerobot v3.0) in {wall_s:.2f} s: "
+    console.print(Text(f"wrote {done.episodes} session episode(s) ({done.frames} frames at "
+                       f"{fps} fps) to {out} (lerobot v3.0) in {wall_s:.2f} s: "
                        f"{done.episodes / wall_s:.1f} episodes/s, {done.frames / wall_s:.0f} "
                        "frames/s"))
     return 0
