@@ -56,9 +56,9 @@ import queue
 import threading
 import time
 from collections import Counter, deque
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
 import zenoh
@@ -85,9 +85,32 @@ from teleop.record.session_file import RecordingFailed
 from teleop.retarget.retargeter import Retargeter
 
 __all__ = ["COMMANDS", "MAX_CONTROL_PAYLOAD_BYTES", "MAX_MARK_KEYS", "MAX_PENDING_CONTROLS",
-           "BridgeControl"]
+           "BridgeControl", "BridgeStatus"]
 
 logger = logging.getLogger(__name__)
+
+
+class BridgeStatus(TypedDict):
+    """The ``status`` reply (:meth:`BridgeControl.status`, JSON over the control queryable):
+    typed because the CLI, the dashboard and the tests read its keys across packages."""
+
+    ok: bool
+    rig: str
+    hand: str
+    object: str
+    counts: dict[str, int]            # frames received, processed, superseded, ... (Counter)
+    held: dict[str, int]              # frames the retargeter held, by reason
+    recording: str | None             # the session file being written, if any
+    last_seq: int | None              # the last hand frame's sequence number
+    sim_time_s: float
+    view: bool                        # a head-following view is being streamed
+    loop_running: bool
+    deterministic: bool
+    object_mode: str                  # "demo" (held fixed) or "free"
+    object_held: bool
+    object_rest: int | None           # the resting pose's index (None: upright)
+    object_rest_yaw_deg: float | None
+
 Array = np.ndarray
 
 #: the bridge's control commands: the rig's common ones and the object mode switch
@@ -170,6 +193,7 @@ class BridgeControl:
     def _on_query(self, query: zenoh.Query) -> None:
         key = str(query.key_expr)
         command = key.rsplit("/", 1)[-1]
+        result: Mapping[str, Any]   # the status, a command's result or an error, as JSON
         try:
             raw = query.payload.to_bytes() if query.payload is not None else b""
             if len(raw) > MAX_CONTROL_PAYLOAD_BYTES:   # refused unparsed: its size is the fault
@@ -383,7 +407,7 @@ class BridgeControl:
             time.sleep(0.002)
         return False
 
-    def status(self) -> dict[str, Any]:
+    def status(self) -> BridgeStatus:
         """Counters and settings (answered from the zenoh thread: never waits for the loop)."""
         with self._lock:
             counts = dict(self.counts)

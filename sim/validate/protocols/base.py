@@ -21,7 +21,7 @@ import dataclasses
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar, TypedDict
 from typing import Protocol as Interface
 
 import numpy as np
@@ -44,7 +44,18 @@ if TYPE_CHECKING:
     from sim.world.hand_spec import ServoSettings
     from sim.world.objects import ObjectAsset
 
-__all__ = ["Bench", "ClosingProtocol", "Options", "Protocol", "six_pushes"]
+__all__ = ["Bench", "ClosingProtocol", "Options", "Protocol", "TargetOptions", "six_pushes"]
+
+
+class TargetOptions(TypedDict, total=False):
+    """What a protocol adds to :func:`sim.validate.targets.targets_from_contacts`' keywords
+    (:meth:`Protocol.target_options`): typed so a protocol cannot pass a keyword
+    the target builder does not take, or one of the wrong kind."""
+
+    act_stiffness: np.ndarray | None   # per actuator, N·m/rad (the protocol's servos)
+    act_limits: np.ndarray | None      # per actuator force limit, N·m
+    settle_modes: bool                 # settle the hand's free modes first
+    self_clear: bool                   # keep the pregrasp out of the hand itself
 
 
 @dataclass(frozen=True)
@@ -125,7 +136,7 @@ class Protocol(ABC):
         """The contacts the squeeze presses: every one within ``[common] contact_search_m``."""
         return bench.near_contacts(scene)
 
-    def target_options(self, bench: Bench, scene: Scene, own_pregrasp: bool) -> dict[str, Any]:
+    def target_options(self, bench: Bench, scene: Scene, own_pregrasp: bool) -> TargetOptions:
         """Keyword options of :func:`sim.validate.targets.targets_from_contacts` (servos…)."""
         return {}
 

@@ -12,13 +12,13 @@ then closes stage by stage and pushes.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from sim.metrics.holding import HoldLoads
 from sim.validate.dgb import run_dgb
-from sim.validate.protocols.base import Bench, Options, Protocol, six_pushes
+from sim.validate.protocols.base import Bench, Options, Protocol, TargetOptions, six_pushes
 from sim.validate.protocols.registry import register
 from sim.validate.rehearsal import rehearsed
 from sim.validate.result import ValidationResult
@@ -67,7 +67,7 @@ class Dgb(Protocol):
         near = bench.near_contacts(scene, bench.config.dgb.contact_search_m)
         return near if bench.holds_every_load(near, loads) else bench.near_contacts(scene)
 
-    def target_options(self, bench: Bench, scene: Scene, own_pregrasp: bool) -> dict[str, Any]:
+    def target_options(self, bench: Bench, scene: Scene, own_pregrasp: bool) -> TargetOptions:
         """Its servos' stiffness and limits; free modes settled and the pregrasp kept out of
         itself for the convention's ``own_pregrasp``."""
         dgb = bench.scene(self.name)
