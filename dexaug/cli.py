@@ -38,6 +38,7 @@ from dexaug.commands.guards import error_hint
 from dexaug.commands.options import logging_args
 from dexaug.commands.registry import COMMANDS
 from dexaug.commands.workers import stop_workers
+from dexaug.headless_gl import default_headless_gl
 from sim.errors import DexaugError
 
 log = logging.getLogger("dexaug")
@@ -198,6 +199,7 @@ def print_error(message: str) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
+    default_headless_gl()   # before any command module imports MuJoCo (dexaug/headless_gl.py)
     args = build_parser(only=_command_name(argv)).parse_args(argv)
     _exit_on_sigterm()
     # markup off: paths, names and messages print as they are; styled output uses rich Text

@@ -92,7 +92,7 @@ def test_quest_capture_replays_into_a_recording(frames, tmp_path, shadow):
     try:
         _record(rig, path, lambda: replay_capture(frames, rig.client, "t1", rate=1.0))
         status = rig.query("status")
-        from teleop.bridge.control import BridgeStatus
+        from teleop.bridge.status import BridgeStatus
         # the reply a remote caller parses has exactly the typed keys (no more, none missing)
         assert set(status) == BridgeStatus.__required_keys__, set(status) ^ BridgeStatus.__required_keys__
         if rig.bridge.view_active:

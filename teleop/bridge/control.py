@@ -58,7 +58,7 @@ import time
 from collections import Counter, deque
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypedDict
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import zenoh
@@ -77,6 +77,7 @@ from teleop.bridge.object_mode import (
     table_record,
 )
 from teleop.bridge.remote_args import calibration_seconds, recording_file, remote_args
+from teleop.bridge.status import BridgeStatus
 from teleop.bridge.view_stream import ViewStream
 from teleop.messages import HandFrame
 from teleop.record.contact_record import ContactRecord
@@ -85,31 +86,10 @@ from teleop.record.session_file import RecordingFailed
 from teleop.retarget.retargeter import Retargeter
 
 __all__ = ["COMMANDS", "MAX_CONTROL_PAYLOAD_BYTES", "MAX_MARK_KEYS", "MAX_PENDING_CONTROLS",
-           "BridgeControl", "BridgeStatus"]
+           "BridgeControl"]
 
 logger = logging.getLogger(__name__)
 
-
-class BridgeStatus(TypedDict):
-    """The ``status`` reply (:meth:`BridgeControl.status`, JSON over the control queryable):
-    typed because the CLI, the dashboard and the tests read its keys across packages."""
-
-    ok: bool
-    rig: str
-    hand: str
-    object: str
-    counts: dict[str, int]            # frames received, processed, superseded, ... (Counter)
-    held: dict[str, int]              # frames the retargeter held, by reason
-    recording: str | None             # the session file being written, if any
-    last_seq: int | None              # the last hand frame's sequence number
-    sim_time_s: float
-    view: bool                        # a head-following view is being streamed
-    loop_running: bool
-    deterministic: bool
-    object_mode: str                  # "demo" (held fixed) or "free"
-    object_held: bool
-    object_rest: int | None           # the resting pose's index (None: upright)
-    object_rest_yaw_deg: float | None
 
 Array = np.ndarray
 
