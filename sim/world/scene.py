@@ -59,6 +59,12 @@ class PhysicsOptions:
     #: validations: 89–105 ms per grasp against 114 dense, same outcomes. None: MuJoCo's
     #: automatic choice (dense below 60 dofs), what the benchmark's scenes use.
     sparse_jacobian: bool | None = True
+    #: collision: MuJoCo's convex–convex CCD iterations and whether it returns several contacts
+    #: per convex pair (multi-CCD). None: this MuJoCo's defaults (4.x: 35 iterations, multi-CCD
+    #: on); a protocol that reproduces a benchmark run on another MuJoCo sets that one's
+    #: (DexGraspBench's 3.3.2: 50, off; sim/validate/protocols/dgb.py)
+    ccd_iterations: int | None = None
+    multiccd: bool | None = None
 
 
 _INTEGRATORS = {"euler": mujoco.mjtIntegrator.mjINT_EULER,
@@ -118,6 +124,11 @@ class Scene:
         world.option.impratio = opts.impratio
         world.option.noslip_iterations = opts.noslip_iterations
         world.option.iterations = opts.solver_iterations
+        if opts.ccd_iterations is not None:
+            world.option.ccd_iterations = opts.ccd_iterations
+        if opts.multiccd is not None:
+            flag = int(mujoco.mjtDisableBit.mjDSBL_MULTICCD)
+            world.option.disableflags = (world.option.disableflags & ~flag) | (0 if opts.multiccd else flag)
         world.option.jacobian = {True: mujoco.mjtJacobian.mjJAC_SPARSE,
                                  False: mujoco.mjtJacobian.mjJAC_DENSE,
                                  None: mujoco.mjtJacobian.mjJAC_AUTO}[opts.sparse_jacobian]
@@ -133,7 +144,7 @@ class Scene:
         base.add_freejoint(name="hand_free")
         hand_spec = self.hand.spec()
         for key in ("timestep", "integrator", "cone", "impratio", "noslip_iterations",
-                    "iterations", "jacobian"):
+                    "iterations", "jacobian", "ccd_iterations", "disableflags"):
             setattr(hand_spec.option, key, getattr(world.option, key))  # the scene's options rule
         if self.contact_on_hand:
             apply_contact(hand_spec, self.contact)

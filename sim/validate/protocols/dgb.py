@@ -49,7 +49,8 @@ class Dgb(Protocol):
         physics = PhysicsOptions(timestep_s=p.timestep_s, impratio=p.impratio,
                                  noslip_iterations=p.noslip_iterations,
                                  solver_iterations=p.solver_iterations,
-                                 weld_solref=p.weld_solref, sparse_jacobian=None)
+                                 weld_solref=p.weld_solref, sparse_jacobian=None,
+                                 ccd_iterations=p.ccd_iterations, multiccd=p.multiccd)
         return Scene(bench.hand, bench.obj, contact=p.contact, physics=physics, servos=p.servos,
                      floating_palm=True, object_mass_kg=p.object_mass_kg, contact_on_hand=True)
 
