@@ -45,11 +45,12 @@ from benchmarks.record import write_record
 from sim.grasp import Grasp
 from sim.paths import REPO_ROOT
 from sim.validate.batch import cached_validator, validate_many
-from sim.validate.dgb_reference import cohen_kappa
+from sim.validate.dgb_reference import cohen_kappa, reference_hand
 
 RUNNER = REPO_ROOT / "benchmarks" / "outside" / "dgb_own" / "run_dgb.py"
 SETUP = RUNNER.parent / "setup.sh"
-HAND = "shadow_right"
+#: the hand of DexGraspBench's reference file (its palm body names it), the hand DGB evaluates
+HAND = reference_hand(REPO_ROOT.parent / "shared" / "reference" / "dexgraspbench" / "grasps.jsonl").name
 DEFAULT_OBJECTS = ("006_mustard_bottle", "013_apple", "040_large_marker", "042_adjustable_wrench")
 
 

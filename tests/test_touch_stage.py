@@ -72,14 +72,12 @@ def test_the_benchmarks_grasp_stage_touches_and_lift_drop_has_none(validator) ->
 
 
 @needs_ycb
-@pytest.mark.parametrize("through_touch", [True, False])
-def test_a_screwdriver_grasp_holds_the_benchmark_only_closed_through_its_touch(
-        validator, monkeypatch, through_touch: bool) -> None:
-    if not through_touch:   # the stages as they were: the grasp's own joints in the middle
-        derive = validator.derive_targets
-        monkeypatch.setattr(validator, "derive_targets", lambda *a, **k: dataclasses.replace(
-            derive(*a, **k), touch=None))
+def test_a_screwdriver_grasp_holds_the_benchmark_closed_through_its_touch(validator) -> None:
+    """The grasp closes pregrasp → touch → squeeze and holds. Until 2026-12-07 its closing
+    without the touch (the grasp's own joints in the middle) failed, which showed the touch
+    stage at work; with the benchmark's own collision settings (``[dgb] ccd_iterations``,
+    ``multiccd``) it holds either way, so this grasp no longer tells the two apart (a closing
+    note of that day says so; a grasp that does is still to be found)."""
     result = validator.validate(SCREWDRIVER_GRASP, "dgb")
-    assert bool(result.passed) is through_touch, np.degrees(result.rotation_rad)
-    if through_touch:
-        assert result.touch is not None and not np.array_equal(result.touch, SCREWDRIVER_GRASP.joints)
+    assert result.passed, np.degrees(result.rotation_rad)
+    assert result.touch is not None and not np.array_equal(result.touch, SCREWDRIVER_GRASP.joints)

@@ -74,6 +74,18 @@ _INTEGRATORS = {"euler": mujoco.mjtIntegrator.mjINT_EULER,
 _CONES = {"elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC, "pyramidal": mujoco.mjtCone.mjCONE_PYRAMIDAL}
 
 
+def _set_jacobian_and_collision(option: mujoco.MjOption, opts: PhysicsOptions) -> None:
+    """Set ``opts``' Jacobian storage, CCD iterations and multi-CCD on a spec's options (None:
+    MuJoCo's automatic choice, its default)."""
+    option.jacobian = {True: mujoco.mjtJacobian.mjJAC_SPARSE, False: mujoco.mjtJacobian.mjJAC_DENSE,
+                       None: mujoco.mjtJacobian.mjJAC_AUTO}[opts.sparse_jacobian]
+    if opts.ccd_iterations is not None:
+        option.ccd_iterations = opts.ccd_iterations
+    if opts.multiccd is not None:
+        flag = int(mujoco.mjtDisableBit.mjDSBL_MULTICCD)
+        option.disableflags = (option.disableflags & ~flag) | (0 if opts.multiccd else flag)
+
+
 class Scene:
     """A compiled hand + object (+ table) world and the index maps to drive and read it.
 
@@ -124,14 +136,7 @@ class Scene:
         world.option.impratio = opts.impratio
         world.option.noslip_iterations = opts.noslip_iterations
         world.option.iterations = opts.solver_iterations
-        if opts.ccd_iterations is not None:
-            world.option.ccd_iterations = opts.ccd_iterations
-        if opts.multiccd is not None:
-            flag = int(mujoco.mjtDisableBit.mjDSBL_MULTICCD)
-            world.option.disableflags = (world.option.disableflags & ~flag) | (0 if opts.multiccd else flag)
-        world.option.jacobian = {True: mujoco.mjtJacobian.mjJAC_SPARSE,
-                                 False: mujoco.mjtJacobian.mjJAC_DENSE,
-                                 None: mujoco.mjtJacobian.mjJAC_AUTO}[opts.sparse_jacobian]
+        _set_jacobian_and_collision(world.option, opts)
         world.visual.global_.offwidth = 1280
         world.visual.global_.offheight = 960
         world.worldbody.add_light(name="key", pos=[0.4, -0.6, 1.2], dir=[-0.3, 0.5, -1.0],
