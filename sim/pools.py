@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import atexit
 import os
+import signal
 import threading
 import time
 from collections.abc import Sequence
@@ -30,8 +31,13 @@ _POOLS: dict[int, ProcessPoolExecutor] = {}
 _OWNER_POLL_S = 1.0
 
 
-def _exit_with_owner(owner_pid: int) -> None:
-    """Worker initializer: a daemon thread that ends this worker once ``owner_pid`` is gone."""
+def _start_worker(owner_pid: int) -> None:
+    """Worker initializer. Ctrl-C is the owner's to handle: a terminal sends SIGINT to the whole
+    process group, and a worker that took it between tasks (or a second one while its task was
+    being stopped) printed a traceback of its queue wait; the owner stops its workers with
+    SIGTERM (:func:`stop_pools`). A daemon thread ends this worker once ``owner_pid`` is gone."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
     def watch() -> None:
         while True:
             time.sleep(_OWNER_POLL_S)
@@ -61,7 +67,7 @@ def persistent_pool(workers: int, preload: Sequence[str] = ()) -> ProcessPoolExe
         ctx = get_context("forkserver")
         ctx.set_forkserver_preload(list(preload))
         pool = _POOLS[key] = ProcessPoolExecutor(workers, mp_context=ctx,
-                                                 initializer=_exit_with_owner,
+                                                 initializer=_start_worker,
                                                  initargs=(os.getpid(),))
         atexit.register(pool.shutdown, cancel_futures=True)
     return pool
