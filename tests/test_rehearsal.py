@@ -99,6 +99,23 @@ def test_the_drift_corrected_squeeze_holds_what_the_uncorrected_one_turns(shadow
     score = closing_score(scene, p, palm, uncorrected)
     assert rehearsed_stages(scene, p, palm, [uncorrected], (), 3, calm_score=score) is uncorrected
     assert rehearsed_stages(scene, p, palm, [uncorrected], (), 3, calm_score=0.99 * score) is not uncorrected
+    # and a correction that calm ends the corrections: the next ones are not closed
+    once_score = closing_score(scene, p, palm, once)
+    closings: list[float] = []
+
+    def counted(*args: object) -> float:
+        closings.append(closing_score(*args))
+        return closings[-1]
+
+    import sim.validate.rehearsal as rehearsal
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(rehearsal, "closing_score", counted)
+        calmed = rehearsed_stages(scene, p, palm, [uncorrected], (), 3, calm_score=once_score)
+        assert closings == [score, once_score]
+        np.testing.assert_array_equal(calmed.squeeze, once.squeeze)
+        closings.clear()
+        rehearsed_stages(scene, p, palm, [uncorrected], (), 3, calm_score=0.0)
+        assert len(closings) == 4                   # never calm enough: all three corrections
 
 
 @needs_ycb

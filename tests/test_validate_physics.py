@@ -102,10 +102,14 @@ def test_servos_and_mass_are_the_configured_ones(validator: Validator, shadow: H
         assert m.opt.ccd_iterations == cfg.dgb.ccd_iterations == 50
         multiccd_off = bool(m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_MULTICCD)
         assert multiccd_off == (not cfg.dgb.multiccd) == True  # noqa: E712
+        # and its solver over the whole scene, as 3.3.2 does unless a model enables islands
+        islands_off = bool(m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_ISLAND)
+        assert islands_off == (not cfg.dgb.islands) == True  # noqa: E712
     else:
         # the other protocols keep this MuJoCo's own collision defaults
         assert m.opt.ccd_iterations == mujoco.MjOption().ccd_iterations
         assert not m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_MULTICCD
+        assert not m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_ISLAND
         scale = cfg.common.servos.kp_scale
         np.testing.assert_allclose(m.actuator_gainprm[acts, 0], scale * own.actuator_gainprm[:, 0])
         np.testing.assert_allclose(m.actuator_forcerange[acts], own.actuator_forcerange)

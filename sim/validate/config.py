@@ -97,6 +97,7 @@ class DgbParams:
     solver_iterations: int
     ccd_iterations: int
     multiccd: bool
+    islands: bool
     max_penetration_m: float
     contact_search_m: float
     stage_increments: int
@@ -145,7 +146,8 @@ def _load_dgb(sec: Section) -> DgbParams:
     sec.reject_unknown({"object_mass_kg", "friction", "solref", "solimp", "servo_kp",
                         "servo_force_limit", "weld_solref", "timestep_s", "impratio",
                         "noslip_iterations", "solver_iterations", "ccd_iterations", "multiccd",
-                        "max_penetration_m", "contact_search_m", "stage_increments", "steps_per_increment",
+                        "islands", "max_penetration_m", "contact_search_m", "stage_increments",
+                        "steps_per_increment",
                         "force_per_kg", "push_time_s", "check_every_steps",
                         "max_displacement_m", "max_rotation_deg", "squeeze_convention",
                         "settle_free_modes", "rehearse_closing", "rehearsal_pregrasp_shares",
@@ -176,6 +178,7 @@ def _load_dgb(sec: Section) -> DgbParams:
         noslip_iterations=sec.int("noslip_iterations", min=0),
         solver_iterations=sec.int("solver_iterations", min=1),
         ccd_iterations=sec.int("ccd_iterations", min=1), multiccd=sec.bool("multiccd"),
+        islands=sec.bool("islands"),
         max_penetration_m=sec.float("max_penetration_m", min=0.0),
         contact_search_m=sec.float("contact_search_m", min=0.0, max=0.05),
         stage_increments=sec.int("stage_increments", min=1),

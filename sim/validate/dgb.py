@@ -63,12 +63,15 @@ def dgb_penetration_m(scene: Scene) -> tuple[float, float]:
 
 
 def _stage(scene: Scene, p: DgbParams, q_from: np.ndarray, q_to: np.ndarray) -> None:
+    """One closing stage: the controls from ``q_from``'s to ``q_to``'s in ``stage_increments``
+    equal steps, each held for ``steps_per_increment`` simulation steps. No ``mj_forward``
+    between a control change and its steps: the first step computes the same forward dynamics
+    from the same state, so one there only repeated it (bit-identical results without it)."""
     m, d = scene.model, scene.data
     c_from, c_to = scene.ctrl_for(q_from), scene.ctrl_for(q_to)
     for k in range(1, p.stage_increments + 1):
         alpha = k / p.stage_increments
         d.ctrl[scene.hand_act] = (1.0 - alpha) * c_from + alpha * c_to
-        mujoco.mj_forward(m, d)
         mujoco.mj_step(m, d, nstep=p.steps_per_increment)
 
 

@@ -23,15 +23,18 @@ servos, springs around their targets, so a grip that holds the object displaced 
 motion holds it back where it was once every target moves by that motion's inverse at the
 contacts. The calmest of the corrected closings and the uncorrected one is kept.
 
-A closing that already scores ``[dgb] rehearsal_calm_score`` or less (a tenth of the limits)
-ends the rehearsal where it stands, later candidates and corrections unrehearsed: on five demos
-the same verdicts, in less time (README "A calm closing ends the rehearsal").
+A closing that already scores ``[dgb] rehearsal_calm_score`` or less (a tenth of the limits),
+a pregrasp candidate's or a correction's, ends the rehearsal where it stands, later candidates
+and corrections unrehearsed: on five demos the same verdicts, in less time (README "A calm
+closing ends the rehearsal"; for corrections too: docs/decisions/2026-12-07-dgb-speed.md).
 
 ``[dgb] early_exit`` skips only simulation whose outcome is known, so the stages chosen are
 the same bit for bit: the pregrasp → grasp stage that a fallback squeeze or a correction shares
 with the closing it came from is copied, not simulated again (:func:`sim.validate.dgb.closed`),
-and a chosen pregrasp the benchmark refuses for penetration is not corrected (a correction keeps
-the pregrasp, so it scores infinity too and can never be kept). Every other decision compares a
+a chosen pregrasp the benchmark refuses for penetration is not corrected (a correction keeps
+the pregrasp, so it scores infinity too and can never be kept), and a correction that leaves the
+squeeze as it was (no hand–object contact left to correct at) ends the corrections (each next one
+would be the same). Every other decision compares a
 closing's drift *at the end of its rest*, which is not monotone in time (a closing that has
 pushed the object past the limits can settle it back), so no candidate's closing is cut short.
 
@@ -174,11 +177,18 @@ def rehearsed_stages(scene: Scene, p: DgbParams, palm_world: tuple[np.ndarray, n
     # none can score lower, and each would still simulate a closing (early exit skips them)
     if p.early_exit and score == float("inf"):
         corrections = 0
-    # each from the last: a correction can pass through a worse closing
+    # each from the last: a correction can pass through a worse closing; a calm one ends them
+    # as it ends the pregrasp candidates, and one that leaves the squeeze as it was (no contact
+    # left to correct at) would only repeat its closing
     for _ in range(corrections if score > calm_score else 0):
-        current = drift_corrected(scene, p, palm_world, current)
-        if (corrected := closing_score(scene, p, palm_world, current)) < score:
-            chosen, score = current, corrected
+        corrected = drift_corrected(scene, p, palm_world, current)
+        if p.early_exit and np.array_equal(corrected.squeeze, current.squeeze):
+            break
+        current = corrected
+        if (corrected_score := closing_score(scene, p, palm_world, current)) < score:
+            chosen, score = current, corrected_score
+        if score <= calm_score:
+            break
     return chosen
 
 

@@ -65,6 +65,9 @@ class PhysicsOptions:
     #: (DexGraspBench's 3.3.2: 50, off; sim/validate/protocols/dgb.py)
     ccd_iterations: int | None = None
     multiccd: bool | None = None
+    #: the constraint solver per island of touching bodies. None: this MuJoCo's default (4.x:
+    #: on; 3.3.x: off unless enabled, which DexGraspBench never does)
+    islands: bool | None = None
 
 
 _INTEGRATORS = {"euler": mujoco.mjtIntegrator.mjINT_EULER,
@@ -75,15 +78,16 @@ _CONES = {"elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC, "pyramidal": mujoco.mjtCon
 
 
 def _set_jacobian_and_collision(option: mujoco.MjOption, opts: PhysicsOptions) -> None:
-    """Set ``opts``' Jacobian storage, CCD iterations and multi-CCD on a spec's options (None:
-    MuJoCo's automatic choice, its default)."""
+    """Set ``opts``' Jacobian storage, CCD iterations, multi-CCD and islands on a spec's options
+    (None: MuJoCo's automatic choice, its default)."""
     option.jacobian = {True: mujoco.mjtJacobian.mjJAC_SPARSE, False: mujoco.mjtJacobian.mjJAC_DENSE,
                        None: mujoco.mjtJacobian.mjJAC_AUTO}[opts.sparse_jacobian]
     if opts.ccd_iterations is not None:
         option.ccd_iterations = opts.ccd_iterations
-    if opts.multiccd is not None:
-        flag = int(mujoco.mjtDisableBit.mjDSBL_MULTICCD)
-        option.disableflags = (option.disableflags & ~flag) | (0 if opts.multiccd else flag)
+    for on, flag in ((opts.multiccd, mujoco.mjtDisableBit.mjDSBL_MULTICCD),
+                     (opts.islands, mujoco.mjtDisableBit.mjDSBL_ISLAND)):
+        if on is not None:
+            option.disableflags = (option.disableflags & ~int(flag)) | (0 if on else int(flag))
 
 
 class Scene:

@@ -50,7 +50,8 @@ class Dgb(Protocol):
                                  noslip_iterations=p.noslip_iterations,
                                  solver_iterations=p.solver_iterations,
                                  weld_solref=p.weld_solref, sparse_jacobian=None,
-                                 ccd_iterations=p.ccd_iterations, multiccd=p.multiccd)
+                                 ccd_iterations=p.ccd_iterations, multiccd=p.multiccd,
+                                 islands=p.islands)
         return Scene(bench.hand, bench.obj, contact=p.contact, physics=physics, servos=p.servos,
                      floating_palm=True, object_mass_kg=p.object_mass_kg, contact_on_hand=True)
 
