@@ -63,10 +63,6 @@ CEILINGS: dict[str, Ceiling] = {
         "statements": 65,
         "reason": "_search: the power-grasp search loop (approach, close in simulation, score) "
                   "of one worker; to split into approach and scoring steps"},
-    "dexaug.commands.generate": {
-        "branches": 28,
-        "reason": "generate_cmd: the CLI job checks each flag combination (demo, power mode, "
-                  "table, validation) before any work, one refusal each"},
     "dexaug.scale.ray_jobs": {
         "statements": 62,
         "reason": "run_on_ray: one scheduling loop (FSG tasks, validation chunks, writes) "

@@ -142,19 +142,27 @@ def test_generate_power_writes_a_dataset_and_refuses_a_demo(tmp_path: Path, caps
 
 @needs_menagerie
 @needs_ycb
-def test_auto_adds_power_grasps_only_where_fingertips_fail(tmp_path: Path) -> None:
-    """--mode auto, the default: on the bleach bottle no fingertip grasp holds, so power grasps
-    are added to the same table; on a light cup fingertip grasps hold and nothing is added.
-    The bleach run names no mode (what a user gets unasked, issue #54); with --validate none
-    the default is fingertip (auto decides from the validation), and asking for auto is refused."""
-    for obj, mode, modes in ((BLEACH, [], "fingertip power"),
-                             ("065_a_cups", ["--mode", "auto"], "fingertip")):
+def test_auto_pilots_both_modes_and_keeps_the_one_that_holds(tmp_path: Path) -> None:
+    """--mode auto, the default: on the bleach bottle no fingertip grasp of the pilot holds and
+    power grasps do, so the table holds power grasps only (the fingertip pilot is not written;
+    both pilots are in ``auto_pilots``); on a light cup every fingertip grasp of the pilot
+    holds, so no power pilot is made. The bleach run names no mode (what a user gets unasked,
+    issue #54); with --validate none the default is fingertip (auto decides from the
+    validation), and asking for auto is refused."""
+    import json
+
+    for obj, mode, modes, piloted in ((BLEACH, [], "power", {"fingertip", "power"}),
+                                      ("065_a_cups", ["--mode", "auto"], "fingertip", {"fingertip"})):
         out = tmp_path / f"{obj}.h5"
         assert main(["generate", "--object", obj, *mode, "--n", "4", "--workers", "1",
                      "--out", str(out)]) == 0
         t = dataset.load(out)[obj]
         assert t.attrs["modes_run"] == modes and t.attrs["mode"] == "auto", obj
-        assert len(t) + len(t.rejected) == 4 * len(modes.split())
+        pilots = json.loads(t.attrs["auto_pilots"])
+        assert set(pilots) == piloted, (obj, pilots)
+        assert len(t) + len(t.rejected) == 4     # the chosen mode's grasps only
+        assert len(t) == pilots[modes]["passed"]
+    assert pilots["fingertip"]["passed"] == 4
     plain = tmp_path / "plain.h5"
     assert main(["generate", "--object", BLEACH, "--validate", "none", "--n", "2", "--workers", "1",
                  "--out", str(plain)]) == 0

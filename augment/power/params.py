@@ -39,9 +39,11 @@ class PowerParams:
             is at most this fraction of the force limits (1: the actuators can just hold).
         oversample: find this many times the grasps asked for and keep those of least
             actuator effort (README "Power grasps": the effort ranks them, AUC 0.66–0.84).
-        auto_below: ``dexaug generate --mode auto`` adds power grasps when fewer than this
-            share of its fingertip grasps pass validation (the issue's "power grasps where the
-            fingertip mode is below 30 %").
+        auto_pilot: ``dexaug generate --mode auto`` first makes and validates this many grasps
+            of each mode (:mod:`dexaug.commands.auto_mode`).
+        auto_margin: ... and makes power grasps only when the power pilot's pass share beats the
+            fingertip pilot's by more than this (fingertip grasps cost 5–10× less per validated
+            grasp, so near-ties go to them).
         tries_per_grasp: closings (one simulation each) per requested grasp before giving up;
             placements, which cost a few collision passes, up to ten times as many.
         seed_overshoot / seed_share / seed_turn_deg / seed_shift_m: with a power demo as the
@@ -62,7 +64,8 @@ class PowerParams:
     max_effort: float = 1.0
     tries_per_grasp: int = 20
     oversample: float = 2.0
-    auto_below: float = 0.3
+    auto_pilot: int = 10
+    auto_margin: float = 0.1
     seed_overshoot: float = 0.5
     seed_share: float = 0.5
     seed_turn_deg: float = 30.0
@@ -79,8 +82,10 @@ class PowerParams:
                 raise ValueError(f"{name} must be a positive number, got {v}")
         if not (math.isfinite(self.oversample) and self.oversample >= 1.0):
             raise ValueError(f"oversample must be a number >= 1, got {self.oversample}")
-        if not 0.0 <= self.auto_below <= 1.0:
-            raise ValueError(f"auto_below must be a share from 0 to 1, got {self.auto_below}")
+        if not 0.0 <= self.auto_margin <= 1.0:
+            raise ValueError(f"auto_margin must be a share from 0 to 1, got {self.auto_margin}")
+        if self.auto_pilot < 1:
+            raise ValueError(f"auto_pilot must be >= 1 grasp, got {self.auto_pilot}")
         for name in ("seed_overshoot", "seed_share"):
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise ValueError(f"{name} must be a share from 0 to 1, got {getattr(self, name)}")

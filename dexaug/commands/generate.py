@@ -18,6 +18,7 @@ from rich.console import Console
 from rich.markup import escape
 
 from dexaug.commands.argtypes import int_at_least
+from dexaug.commands.auto_mode import AutoChoice, ModeRun, run_auto
 from dexaug.commands.guards import object_name, require_new_or_dataset, require_writable
 from dexaug.commands.options import (
     SHORT_STATUS,
@@ -62,8 +63,9 @@ def _generate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--mode", choices=("fingertip", "power", "auto"), default=None,
                    help="fingertip: FSG (paper §4); power: palm and whole fingers around the "
                    "object, for objects fingertips cannot lift (augment.power; no --demo, "
-                   "--fingers or --table); auto: fingertip, then power grasps too when fewer "
-                   "than [power] auto_below of the fingertip grasps pass (never with --demo, "
+                   "--fingers or --table); auto: a validated pilot of [power] auto_pilot grasps "
+                   "of each mode, then the rest in the one that passes more often (power must "
+                   "beat fingertip by [power] auto_margin; fingertip only with --demo, "
                    "--fingers or --table, which ask for fingertips); default: auto, or "
                    "fingertip with --validate none (auto decides from the validation)")
     generation_args(p)
@@ -77,11 +79,12 @@ def generate_cmd(args: argparse.Namespace, console: Console) -> int:
     the fingers that touched in the demo are used, as in the paper's augmentation). Every grasp
     is validated in MuJoCo (--validate); passing grasps go to the main table, failing ones to
     the side table "rejected" with their reason. A shortfall (fewer grasps than --n within
-    --budget) is reported, never a hang. --mode power makes whole-hand grasps instead
-    (augment.power: palm on the object, every finger closed onto it in simulation); --mode
-    auto, the default unless --validate none (issue #54: a user who names only the object gets
-    the best mode), makes fingertip grasps and, when fewer than [power] auto_below of them
-    pass, power grasps too, both in the same table (attribute ``modes_run``); it says which.
+    --budget, which each run gets) is reported, never a hang. --mode power makes whole-hand
+    grasps instead (augment.power: palm on the object, every finger closed onto it in
+    simulation); --mode auto, the default unless --validate none (issue #54: a user who names
+    only the object gets the best mode), pilots both modes and makes the rest of the grasps in
+    the one that holds more often (:mod:`dexaug.commands.auto_mode`; table attributes
+    ``modes_run`` and ``auto_pilots``); it says which.
     Exit status 3: the dataset was written with fewer than half of --n grasps; 2: an input or
     --out that cannot be used (checked before any work).
     """
@@ -114,19 +117,19 @@ def generate_cmd(args: argparse.Namespace, console: Console) -> int:
         raise UsageError("--mode auto decides from the fingertip grasps' validation: it needs "
                          "--validate")
     with progress_bars(console) as bar:
-        def run(mode: str) -> tuple[FsgResult, list[ValidationResult] | None]:
-            return _generate_and_validate(args, mode, hand, obj, demo, workers, backend, bar)
+        def run(mode: str, n: int, seed: int) -> ModeRun:
+            return (mode, *_generate_and_validate(args, mode, hand, obj, demo, workers, backend,
+                                                  bar, n, seed))
 
-        runs = [(mode := "power" if args.mode == "power" else "fingertip", *run(mode))]
-        if args.mode == "auto" and _auto_adds_power(console, args, hand, runs[0][2]):
-            runs.append(("power", *run("power")))
+        runs, choice = _mode_runs(args, hand, run)
+    _report_choice(console, args, choice)
     grasps = [g for _, res, _ in runs for g in res.grasps]
     validated = [r for _, _, r in runs if r is not None]   # every run, or none (--validate)
     results = [x for r in validated for x in r] if len(validated) == len(runs) else None
     table = dataset.from_fsg(grasps, hand.joint_names, hand.finger_names, results,
                              demo_id=demo.id if demo else "",
                              attrs=_generate_provenance(args, hand.name, backend, demo,
-                                                        [m for m, _, _ in runs]),
+                                                        [m for m, _, _ in runs], choice),
                              split_rejected=results is not None)
     dataset.append(args.out, {obj.name: table})
     for mode, res, res_results in runs:
@@ -140,16 +143,15 @@ def generate_cmd(args: argparse.Namespace, console: Console) -> int:
 
 
 def _generate_and_validate(args: argparse.Namespace, mode: str, hand: Hand, obj: ObjectAsset,
-                           demo: Demo | None, workers: int, backend: str, bar: Progress
-                           ) -> tuple[FsgResult, list[ValidationResult] | None]:
-    """One mode's grasps (``"fingertip"``: FSG; ``"power"``) and, unless --validate none,
-    their validation, each with its progress bar."""
+                           demo: Demo | None, workers: int, backend: str, bar: Progress,
+                           n: int, seed: int) -> tuple[FsgResult, list[ValidationResult] | None]:
+    """``n`` grasps of one mode (``"fingertip"``: FSG; ``"power"``) from ``seed`` and, unless
+    --validate none, their validation, each with its progress bar."""
     from sim.validate.batch import validate_many
 
-    task = bar.add_task(escape(f"{'power' if mode == 'power' else 'FSG'} {obj.name}"),
-                        total=args.n)
-    res = (_power(args, hand, obj.name, workers, lambda k: bar.update(task, completed=k))
-           if mode == "power" else _fsg(args, hand, obj, demo, workers,
+    task = bar.add_task(escape(f"{'power' if mode == 'power' else 'FSG'} {obj.name}"), total=n)
+    res = (_power(args, hand, obj.name, workers, n, seed, lambda k: bar.update(task, completed=k))
+           if mode == "power" else _fsg(args, hand, obj, demo, workers, n, seed,
                                         lambda k: bar.update(task, completed=k)))
     bar.update(task, completed=len(res.grasps))
     if args.validate == "none" or not res.grasps:
@@ -161,28 +163,30 @@ def _generate_and_validate(args: argparse.Namespace, mode: str, hand: Hand, obj:
                               progress=lambda k: bar.update(vt, completed=k), backend=backend)
 
 
-def _auto_adds_power(console: Console, args: argparse.Namespace, hand: Hand,
-                     results: list[ValidationResult] | None) -> bool:
-    """--mode auto's choice after the fingertip run, said on the console: power grasps too
-    when fewer than [power] auto_below of the fingertip grasps pass, unless --demo, --fingers
-    or --table ask for fingertip grasps."""
+def _mode_runs(args: argparse.Namespace, hand: Hand,
+               run: Callable[[str, int, int], ModeRun]) -> tuple[list[ModeRun], AutoChoice | None]:
+    """The runs --mode asks for: --n grasps of power or fingertip; for auto, its pilots and the
+    chosen mode's grasps (:func:`dexaug.commands.auto_mode.run_auto`), fingertip alone when
+    --demo, --fingers or --table ask for fingertips."""
     from augment.power import load_power_params
 
-    rate = _pass_rate(results)
-    below = load_power_params(hand_file=hand.config.file).auto_below
     asked = bool(args.demo) or bool(args.fingers) or args.table is not None
-    verdict = (f"fingertip grasps: {100 * rate:.0f} % pass {args.validate} (power grasps are "
-               f"added below {100 * below:.0f} %)")
-    if rate < below and not asked:
-        console.print(f"{verdict}: adding power grasps")
-        return True
-    console.print(f"{verdict}: fingertip only"
-                  + (" (--demo, --fingers or --table ask for fingertips)" if rate < below else ""))
-    return False
+    if args.mode == "auto" and not asked:
+        params = load_power_params(hand_file=hand.config.file)
+        return run_auto(run, args.n, args.seed, params.auto_pilot, params.auto_margin)
+    return [run("power" if args.mode == "power" else "fingertip", args.n, args.seed)], None
 
 
-def _pass_rate(results: list[ValidationResult] | None) -> float:
-    return sum(r.passed for r in results) / len(results) if results else 0.0
+def _report_choice(console: Console, args: argparse.Namespace, choice: AutoChoice | None) -> None:
+    """--mode auto's pilots and choice, and the pilot it does not write."""
+    if choice is None:
+        if args.mode == "auto":
+            console.print("auto: fingertip only (--demo, --fingers or --table ask for fingertips)")
+        return
+    console.print(choice.summary())
+    for mode, (made, _) in choice.pilots.items():
+        if mode != choice.mode and made:
+            console.print(f"auto: the {mode} pilot's {made} grasps are not written")
 
 
 def _report_run(console: Console, args: argparse.Namespace, mode: str, res: FsgResult,
@@ -203,7 +207,7 @@ def _report_run(console: Console, args: argparse.Namespace, mode: str, res: FsgR
 
 
 def _fsg(args: argparse.Namespace, hand: Hand, obj: ObjectAsset, demo: Demo | None,
-         workers: int, progress: Callable[[int], None]) -> FsgResult:
+         workers: int, n: int, seed: int, progress: Callable[[int], None]) -> FsgResult:
     """FSG on the hand's manual workspace, or one centred on ``demo``."""
     from augment.autows.build import build_workspace
     from augment.autows.seed import DemoSeed
@@ -211,24 +215,24 @@ def _fsg(args: argparse.Namespace, hand: Hand, obj: ObjectAsset, demo: Demo | No
     from dexaug.pipeline.run import demo_fingers, demo_table, generate_grasps
 
     ws = build_workspace(hand, demo=DemoSeed.from_demo(demo) if demo else None)
-    return generate_grasps(hand, object_cloud(obj), ws, n=args.n, fingers=args.fingers,
+    return generate_grasps(hand, object_cloud(obj), ws, n=n, fingers=args.fingers,
                            finger_names=demo_fingers(demo) if demo else None,
                            table=demo_table(demo, args.table), use_affordance=not args.no_aff,
                            finger_iteration=(args.finger_iteration
                                              if args.finger_iteration is not None
                                              else demo is None),
-                           link_penetration=not args.no_linkpen, seed=args.seed,
+                           link_penetration=not args.no_linkpen, seed=seed,
                            time_budget_s=args.budget, workers=workers,
                            hold_protocol=_hold_protocol(args), progress=progress)
 
 
-def _power(args: argparse.Namespace, hand: Hand, obj: str, workers: int,
+def _power(args: argparse.Namespace, hand: Hand, obj: str, workers: int, n: int, seed: int,
            progress: Callable[[int], None]) -> FsgResult:
     """Power grasps (:mod:`augment.power`), kept when the actuators can hold the loads of
     --validate's protocol (lift-drop's when validation is off)."""
     from augment.power import generate_power
 
-    return generate_power(hand, obj, n=args.n, seed=args.seed, workers=workers,
+    return generate_power(hand, obj, n=n, seed=seed, workers=workers,
                           time_budget_s=args.budget, protocol=_hold_protocol(args),
                           use_affordance=not args.no_aff, progress=progress)
 
@@ -238,7 +242,8 @@ def _hold_protocol(args: argparse.Namespace) -> str:
 
 
 def _generate_provenance(args: argparse.Namespace, hand: str, backend: str,
-                         demo: Demo | None, modes: list[str]) -> dict[str, object]:
+                         demo: Demo | None, modes: list[str],
+                         choice: AutoChoice | None) -> dict[str, object]:
     """What made a ``generate`` table: every option as given (JSON), the hand, protocol,
     seed and backend as their own attributes, and the demonstration itself (so ``dexaug arm
     --grasps as-it-lies`` can rebuild its workspace)."""
@@ -247,7 +252,8 @@ def _generate_provenance(args: argparse.Namespace, hand: str, backend: str,
     options = {k: str(v) if isinstance(v, Path) else v for k, v in vars(args).items()
                if k not in ("handler",) and not callable(v)}
     return {"hand": hand, "seed": args.seed, "protocol": args.validate, "backend": backend,
-            "mode": args.mode, "modes_run": " ".join(modes),
+            "mode": args.mode, "modes_run": " ".join(dict.fromkeys(modes)),
+            "auto_pilots": choice.attrs() if choice is not None else "",
             "options": json.dumps(options, sort_keys=True, default=str),
             "demo_source": str(demo.source) if demo is not None else "",
             "demo": json.dumps(demo_to_json(demo)) if demo is not None else ""}
