@@ -15,7 +15,7 @@ So auto measures both modes on the object at hand:
 1. It makes and validates a pilot of ``[power] auto_pilot`` grasps per mode.
 2. Power wins only when its pilot passes more than ``auto_margin`` more often than the
    fingertip pilot. Near-ties go to the cheaper mode, and the power pilot is skipped where it
-   cannot win (fingertips already pass more than 1 − margin).
+   cannot win (fingertips already pass at least 1 − margin).
 3. The chosen mode continues to ``--n`` grasps with a seed of its own.
 4. The other pilot's grasps are not written. The report gives their numbers, and so do the
    table's attributes.
@@ -51,8 +51,7 @@ class AutoChoice:
     pilots: dict[str, tuple[int, int]]
 
     def rate(self, mode: str) -> float:
-        made, passed = self.pilots.get(mode, (0, 0))
-        return passed / made if made else 0.0
+        return _rate(self.pilots.get(mode, (0, 0)))
 
     def summary(self) -> str:
         """One line for the console: each pilot's pass share and the choice."""
@@ -66,6 +65,11 @@ class AutoChoice:
                           sort_keys=True)
 
 
+def _rate(pilot: tuple[int, int]) -> float:
+    """A pilot's (grasps, passed) as a pass share; 0 for an empty pilot."""
+    return pilot[1] / pilot[0] if pilot[0] else 0.0
+
+
 def _tally(run: ModeRun) -> tuple[int, int]:
     results = run[2] or []
     return len(run[1].grasps), sum(bool(r.passed) for r in results)
@@ -76,13 +80,10 @@ def choose_mode(fingertip: tuple[int, int], power: tuple[int, int] | None,
     """``"power"`` when the power pilot's pass share beats the fingertip pilot's by more than
     ``margin``, else ``"fingertip"`` (pilots as (grasps, passed)); power too when FSG made no
     fingertip grasp and the power pilot made any."""
-    def rate(pilot: tuple[int, int]) -> float:
-        return pilot[1] / pilot[0] if pilot[0] else 0.0
-
     if not fingertip[0]:    # FSG made no grasp at all: fingertips cannot deliver any
         return "power" if power is not None and power[0] else "fingertip"
     # a share difference of exactly the margin is a tie (1e-9: 0.8 − 0.7 is 0.1000…01 in floats)
-    return ("power" if power is not None and rate(power) - rate(fingertip) > margin + 1e-9
+    return ("power" if power is not None and _rate(power) - _rate(fingertip) > margin + 1e-9
             else "fingertip")
 
 
@@ -102,7 +103,7 @@ def run_auto(run: RunMode, n: int, seed: int, pilot: int,
     tip = run("fingertip", k, seed)
     pilots = {"fingertip": _tally(tip)}
     pw = None
-    if pilots["fingertip"][0] and pilots["fingertip"][1] / pilots["fingertip"][0] + margin >= 1.0 - 1e-9:
+    if pilots["fingertip"][0] and _rate(pilots["fingertip"]) + margin >= 1.0 - 1e-9:
         mode = "fingertip"     # power cannot beat it by the margin: no power pilot
     else:
         pw = run("power", k, seed)
