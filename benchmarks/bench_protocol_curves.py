@@ -40,10 +40,13 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=200)
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2])
     ap.add_argument("--protocols", nargs="+", default=list(names()))
-    ap.add_argument("--grasps", type=Path, default=Path("/tmp/dexaug_bench_grasps.h5"),
-                    help="FSG grasps of --object (made here when the file does not exist)")
+    ap.add_argument("--grasps", type=Path, default=None,
+                    help="FSG grasps of --object, made here when the file does not exist "
+                         "(default /tmp/dexaug_bench_grasps_<object>.h5: one file per object, "
+                         "so another object's file is never read for this one)")
     args = ap.parse_args()
     hand = Hand.load(default_hand_name())
+    args.grasps = args.grasps or Path(f"/tmp/dexaug_bench_grasps_{args.object}.h5")
     grasps = load_grasps(args.grasps, hand, args.object, args.n)
     rows: list[dict[str, Any]] = []
     for protocol in args.protocols:
