@@ -71,9 +71,10 @@ HUMAN_TOUCH_M = 0.010
 PUSHED_M = 0.005
 
 
-def _human_fingers(ep, obj: str, hand) -> list[str]:
+def _human_fingers(ep, obj: str, hand) -> dict[str, float]:
     """Robot fingers whose operator finger's pad is within HUMAN_TOUCH_M of the object at the
-    grasp moment (the mapping of the hand's retarget.toml)."""
+    grasp moment (the mapping of the hand's retarget.toml), each with that pad's gap to the
+    surface (metres, negative: inside; the operator's tracked pad, not the robot's)."""
     from sim.transforms import quat_to_mat
     from sim.world.objects import load_object
     from teleop.messages import JOINT_INDEX
@@ -89,7 +90,8 @@ def _human_fingers(ep, obj: str, hand) -> list[str]:
     h = frame.right
     local = (h.positions[rows] - ep.object_pos_m) @ quat_to_mat(ep.object_quat_wxyz)
     gap = surface_distance_m(load_object(obj).surface_mesh(), local) - h.radii[rows]
-    return sorted(n for n, g in zip(names, gap, strict=True) if g < HUMAN_TOUCH_M)
+    return {n: round(float(g), 5) for n, g in sorted(zip(names, gap, strict=True))
+            if g < HUMAN_TOUCH_M}
 
 
 def _states_on_operator_clock(path: Path, ep, topic: str = "/state"
@@ -213,7 +215,8 @@ def run_one(job: tuple[str, str, int, str, str, bool]) -> dict:
     d = Path(out) / f"{obj}_{seed}"
     d.mkdir(parents=True, exist_ok=True)
     raw = write_session(ep, d / "raw.mcap", overwrite=True)
-    row["human"] = _human_fingers(ep, obj, hand)
+    row["human_pad_gaps_m"] = _human_fingers(ep, obj, hand)
+    row["human"] = list(row["human_pad_gaps_m"])
     demo_path = rerecord(raw, d / "demo.mcap", object_mode="demo")
     row["pad_gaps_m"] = _pad_gaps_m(demo_path, ep, obj, hand, row["human"])
     held = _demos_of(demo_path, row["human"])
@@ -285,9 +288,12 @@ def summarize(rows: list[dict]) -> dict:
         return {"episodes": len(sel), **{k: sum(bool(r.get(k)) for r in sel) for k, _ in COUNTED}}
 
     gaps = np.concatenate([r["pad_gaps_m"] for r in ok]) if ok else np.zeros(0)
+    human = np.array([g for r in ok for g in r["human_pad_gaps_m"].values()])
     return {**counts(ok), "skipped": len(rows) - len(ok),
             "pushed": sum(r["push_m"] > PUSHED_M for r in ok),
             "pad_gap_median_m": float(np.median(gaps)) if len(gaps) else None,
+            "human_pad_gap_median_m": float(np.median(human)) if len(human) else None,
+            "human_pads_inside": int((human < 0.0).sum()), "human_pads": len(human),
             "per_object": {o: counts([r for r in ok if r["object"] == o])
                            for o in dict.fromkeys(r["object"] for r in ok)}}
 
@@ -316,6 +322,10 @@ def _print_summary(summary: dict, label: str, wall_s: float) -> None:
     for k, name in COUNTED:
         print(f"  {name:38s} {pct(k, summary)}")
     print(f"  pushed > {PUSHED_M * 1e3:.0f} mm before the closure (free): {summary['pushed']}/{n}")
+    if summary["human_pads"]:
+        print(f"  the person's touching pads at the grasp: median "
+              f"{summary['human_pad_gap_median_m'] * 1e3:.1f} mm off the surface, "
+              f"{summary['human_pads_inside']}/{summary['human_pads']} inside it")
     print(f"\n{'object':22s} " + "  ".join(f"{name[:22]:>22s}" for _, name in COUNTED[:5]))
     for obj, c in summary["per_object"].items():
         print(f"{obj:22s} " + "  ".join(f"{pct(k, c):>22s}" for k, _ in COUNTED[:5]))

@@ -95,6 +95,8 @@ class RetargetConfig:
     pad_targets: bool
     phalanx_cost: float
     snap_distance_m: float
+    operator_snap_distance_m: float
+    operator_touch_depth_m: float
     snap_in_sim_frame: bool
     input_filter: InputFilterSettings
     calibration_s: float
@@ -111,7 +113,8 @@ _RETARGET_KEYS = {"solver", "iterations", "dt_s", "fingertip_cost", "posture_cos
                   "task_lm_damping", "damping", "limit_gain", "filter_time_constant_s",
                   "filter_alpha", "scale", "operator_hand_length_m", "wrist_position_scale",
                   "world_offset_m", "pinch_release_gap_m", "pinch_cost", "pad_targets",
-                  "phalanx_cost", "snap_distance_m", "snap_in_sim_frame", "calibration_s",
+                  "phalanx_cost", "snap_distance_m", "operator_snap_distance_m", "operator_touch_depth_m",
+                  "snap_in_sim_frame", "calibration_s",
                   "input_min_cutoff_hz", "input_beta", "input_d_cutoff_hz", "input_beta_rotation"}
 _HAND_KEYS = {"side", "fingers", "phalanges", "scale_finger", "wrist_pos_m", "wrist_rpy_deg"}
 
@@ -204,6 +207,8 @@ def load_retarget_config(path: Path | str | None = None) -> RetargetConfig:
         pad_targets=sec.bool("pad_targets", True),
         phalanx_cost=sec.float("phalanx_cost", 0.5, min=0.0),
         snap_distance_m=sec.float("snap_distance_m", 0.015, min=0.0, max=0.05),
+        operator_snap_distance_m=sec.float("operator_snap_distance_m", 0.02, min=0.0, max=0.05),
+        operator_touch_depth_m=sec.float("operator_touch_depth_m", 0.003, min=0.0, max=0.02),
         snap_in_sim_frame=sec.bool("snap_in_sim_frame", True),
         input_filter=InputFilterSettings(
             min_cutoff_hz=sec.float("input_min_cutoff_hz", d_in.min_cutoff_hz, min=0.0, max=100.0),

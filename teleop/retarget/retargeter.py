@@ -30,9 +30,10 @@ Targets (contact-aware)
     robot's phalanges too. Near a thumb–finger pinch the targets are pulled together and a
     distance task (:class:`teleop.retarget.tasks.PinchTask`) joins the IK. With an object
     (:meth:`Retargeter.set_object`), targets within ``snap_distance_m`` of its surface or behind
-    it go onto it, or ``press_m`` into it (the bridge's grasp assist,
-    :mod:`teleop.retarget.snap`); with the simulated base pose (``sim_base``) a snapped pad is
-    solved in *that* frame, so the pads reach the object where the simulated hand really is.
+    it, and targets whose *operator* pad is within ``operator_snap_distance_m`` of it, go onto
+    it, or ``press_m`` into it (the bridge's grasp assist, :mod:`teleop.retarget.snap`); with
+    the simulated base pose (``sim_base``) a snapped pad is solved in *that* frame, so the pads
+    reach the object where the simulated hand really is.
 
 Scale calibration (:mod:`teleop.retarget.calibration`)
     scale = robot length / operator length × ``scale``, the operator measured from frames at
@@ -303,8 +304,8 @@ class Retargeter:
         tips = self._tip_idx
         radii = hand.radii[tips]
         centres = (pos[tips] - p_w) @ r_w             # fingertips in the operator wrist frame
-        rel = ((pad_points(pos[tips], hand.orientations_wxyz[tips], radii) - p_w) @ r_w
-               if self.config.pad_targets else centres)
+        pads = pad_points(pos[tips], hand.orientations_wxyz[tips], radii)
+        rel = (pads - p_w) @ r_w if self.config.pad_targets else centres
         pinch = None
         if self._pinch_task is not None and self._thumb_row is not None:
             rel, pinch = pinch_adjust(rel, centres, radii, self._thumb_row, self._other_rows,
@@ -316,7 +317,10 @@ class Retargeter:
         if self.surface is not None and cfg.snap_distance_m > 0.0:
             targets, moved = snap_pad_targets(
                 self.surface, targets, (base_p, base_q), cfg.snap_distance_m, self.press_m,
-                sim_base if cfg.snap_in_sim_frame else None)
+                sim_base if cfg.snap_in_sim_frame else None,
+                operator_pads_m=cfg.world_offset_m + cfg.wrist_position_scale * pads,
+                operator_snap_m=cfg.operator_snap_distance_m,
+                operator_depth_m=cfg.operator_touch_depth_m)
         phal = self._phalanx_targets(hand, p_w, r_w)
         q_ik = self._solve(targets, phal, pinch)
         if q_ik is None:

@@ -36,10 +36,12 @@ class SynthConfig:
     when the operator picks a placement that can hold the object up (a person's dry grip on
     household objects, ≈ 0.5; :mod:`teleop.synthetic.grasp_search`).
     Human geometry and timing (both off, (0, 0), by default: the operator as it always was).
-    standoff_m: (min, max) metres; when max > 0 each finger's tip stops a distance drawn
-    uniformly from it *short* of the surface (no press-in): a person's tracked fingertips stop
-    3–8 mm off a virtual object they hold (nothing stops the real finger, and the hand model and
-    tracking are off by that much). lift_delay_s: (min, max) seconds; when max > 0 the lift
+    standoff_m: (min, max) metres; when max > 0 each of the operator's own pads (its tip joint
+    less the joint's radius, not the robot tip it maps onto) stops a distance drawn uniformly
+    from it *short* of the surface (no press-in): a person's tracked fingertips stop 3–8 mm off
+    a virtual object they hold (nothing stops the real finger, and the hand model and tracking
+    are off by that much); whether the robot's pads then reach the object is the
+    retargeter's job. lift_delay_s: (min, max) seconds; when max > 0 the lift
     begins a time drawn uniformly from it after the fingers reach the object (people lift
     0.12–0.64 s after first contact, median 0.36 s), replacing settle_s. Drawn per episode
     from the seed (:func:`teleop.synthetic.synthesize.synthesize`).

@@ -42,19 +42,25 @@ class Correspondence:
         """The retargeter's fingertip scale for an operator of this bone-chain length."""
         return self.robot_length_m / operator_length_m * self.config.scale
 
+    def world_of_tracking(self, p_m: Array) -> Array:
+        """A tracking-space point (metres) where the retargeter puts it in the world."""
+        return np.asarray(p_m) * self.config.wrist_position_scale + self.config.world_offset_m
+
+    def tracking_of_world(self, p_m: Array) -> Array:
+        """A world point (metres) in tracking space: the inverse of :meth:`world_of_tracking`."""
+        return (np.asarray(p_m) - self.config.world_offset_m) / self.config.wrist_position_scale
+
     def wrist_for_palm(self, palm_pos_m: Array, palm_rot: Array) -> tuple[Array, Array]:
         """Operator wrist (tracking-space position, metres; axes) that puts frame_palm at
         (palm_pos_m, palm_rot) in the world."""
         r_w = palm_rot @ self.r_pw
-        wrist_world = palm_pos_m + palm_rot @ self.p_pw
-        return (wrist_world - self.config.world_offset_m) / self.config.wrist_position_scale, r_w
+        return self.tracking_of_world(palm_pos_m + palm_rot @ self.p_pw), r_w
 
     def palm_for_wrist(self, wrist_pos_m: Array, wrist_rot: Array) -> tuple[Array, Array]:
         """frame_palm in the world (position metres, axes) for an operator wrist pose
         (tracking space): the inverse of :meth:`wrist_for_palm`."""
         palm_rot = wrist_rot @ self.r_pw.T
-        palm_pos = (wrist_pos_m * self.config.wrist_position_scale + self.config.world_offset_m
-                    - palm_rot @ self.p_pw)
+        palm_pos = self.world_of_tracking(wrist_pos_m) - palm_rot @ self.p_pw
         return palm_pos, palm_rot
 
     def operator_tip_for(self, tip_palm_m: Array, scale: float) -> Array:

@@ -29,11 +29,12 @@ import numpy as np
 from sim.errors import ConfigError
 from sim.hand.model import Hand
 from sim.transforms import quat_to_mat
+from teleop.messages import JOINT_INDEX
 from teleop.synthetic.config import SynthConfig
 from teleop.synthetic.correspondence import Correspondence
 from teleop.synthetic.grasp_search import search_grasp
 from teleop.synthetic.human_hand import FINGERS, LONG_FINGERS, HandPose, HumanHand, finger_of
-from teleop.synthetic.surface import closest_surface_frames
+from teleop.synthetic.surface import closest_surface_frames, closest_surface_points
 
 __all__ = ["GraspTarget", "grasp_target"]
 
@@ -62,17 +63,18 @@ class GraspTarget:
 
 def grasp_target(robot: Hand, human: HumanHand, corr: Correspondence, scale: float,
                  object_name: str, obj_pos: Array, obj_rot: Array, *, grasp_name: str | None,
-                 snap_m: float, press_m: float | Array = 0.0,
+                 snap_m: float, press_m: float = 0.0, standoff_m: Array | None = None,
                  grip_friction: float = SynthConfig.grip_friction) -> GraspTarget:
     """The operator's grasp of ``object_name`` (world pose ``obj_pos``, ``obj_rot``) for robot
     hand ``robot``: imitating its reference grasp for the object (or ``grasp_name``), else a
     generic side grasp (module docstring). ``scale``: the retargeter's fingertip scale for this
     operator; ``snap_m``: reference pulp sites this close to the surface go onto it;
     ``press_m``: the operator closes the fingertips this far past the surface (metres; a
-    generic grasp only), or, per finger (an array in :data:`FINGERS` order, thumb first,
-    negative), stops each this far short of it — a person's standoff, applied to a reference
-    grasp's snapped pulp sites as well; ``grip_friction``: the friction the operator counts
-    on to hold it up."""
+    generic grasp only); ``standoff_m`` (per finger, :data:`FINGERS` order, thumb first,
+    metres): instead, the operator's *own* pads (tip joint less its radius) stop this far short
+    of the surface — a person's standoff on a virtual object, for the touching fingers of a
+    reference grasp as well; ``grip_friction``: the friction the operator counts on to hold
+    it up."""
     ref = _reference_for(robot, object_name, grasp_name)
     residual: dict[str, float] = {}
     if ref is not None:
@@ -80,10 +82,10 @@ def grasp_target(robot: Hand, human: HumanHand, corr: Correspondence, scale: flo
         palm_pos = obj_pos + obj_rot @ ref.grasp.palm_pos
         wrist_pos, wrist_rot = corr.wrist_for_palm(palm_pos, palm_rot)
         tips_palm = robot.fingertip_sites(ref.grasp.joints, frame="palm")[0]
+        snapped = np.zeros(len(tips_palm), bool)
         if snap_m > 0.0:
-            tips_palm = _snap_tips(tips_palm, object_name, ref.grasp.palm_pos,
-                                   quat_to_mat(ref.grasp.palm_quat_wxyz), snap_m,
-                                   _robot_standoffs(robot, corr, press_m))
+            tips_palm, snapped = _snap_tips(tips_palm, object_name, ref.grasp.palm_pos,
+                                            quat_to_mat(ref.grasp.palm_quat_wxyz), snap_m)
         grasp_pose = HandPose.relaxed()
         for k, robot_finger in enumerate(robot.finger_names):
             joint = corr.mapping.fingers.get(robot_finger)
@@ -91,6 +93,11 @@ def grasp_target(robot: Hand, human: HumanHand, corr: Correspondence, scale: flo
                 continue
             finger = finger_of(joint)
             target = corr.operator_tip_for(tips_palm[k], scale)
+            if standoff_m is not None and snapped[k]:
+                target = _pad_short_of_surface(
+                    target, corr, wrist_pos, wrist_rot, object_name, obj_pos, obj_rot,
+                    float(standoff_m[FINGERS.index(finger)]
+                          + human.radii[JOINT_INDEX[f"{finger}_tip"]]))
             x, res = human.fit_finger(finger, target, grasp_pose)
             grasp_pose = (replace(grasp_pose, thumb=x) if finger == "thumb" else
                           replace(grasp_pose, fingers={**grasp_pose.fingers, finger: x}))
@@ -100,7 +107,8 @@ def grasp_target(robot: Hand, human: HumanHand, corr: Correspondence, scale: flo
                     {k: round(v, 4) for k, v in residual.items()})
     else:
         wrist_pos, wrist_rot, grasp_pose, residual = _generic_grasp(
-            robot, human, corr, scale, object_name, obj_pos, obj_rot, press_m, grip_friction)
+            robot, human, corr, scale, object_name, obj_pos, obj_rot, press_m, standoff_m,
+            grip_friction)
         palm_pos, palm_rot = corr.palm_for_wrist(wrist_pos, wrist_rot)
     return GraspTarget(wrist_pos_m=wrist_pos, wrist_rot=wrist_rot, pose=grasp_pose,
                        palm_pos_m=palm_pos, palm_rot=palm_rot, residual_m=residual,
@@ -124,43 +132,42 @@ def _reference_for(hand: Hand, object_name: str, grasp_name: str | None) -> Any:
     return None
 
 
-def _robot_standoffs(robot: Hand, corr: Correspondence, press_m: float | Array) -> Array | None:
-    """Per robot finger, how far short of the surface its operator finger stops (metres), from
-    a per-finger ``press_m`` (:data:`FINGERS` order, negative: short); None for a scalar press
-    (a reference grasp is then imitated as it is)."""
-    if np.ndim(press_m) == 0:
-        return None
-    short = -np.asarray(press_m, float)
-    out = np.zeros(len(robot.finger_names))
-    for k, robot_finger in enumerate(robot.finger_names):
-        joint = corr.mapping.fingers.get(robot_finger)
-        if joint is not None:
-            out[k] = short[FINGERS.index(finger_of(joint))]
-    return out
-
-
 def _snap_tips(tips_palm: Array, object_name: str, palm_pos_obj: Array, palm_rot_obj: Array,
-               max_gap_m: float, standoff_m: Array | None = None) -> Array:
+               max_gap_m: float) -> tuple[Array, Array]:
     """Reference pulp sites (frame_palm) within ``max_gap_m`` of the object's surface moved
-    onto it (closest point), or, with ``standoff_m`` (per robot finger, metres), that far out
-    along the surface normal. Why: hand-built reference grasps touch the object with whatever
-    part of the finger met it first, so their pulp sites sit up to ~1.5 cm off the surface;
-    an operator grasping the object puts the finger *pads* on it — a real one, seen by the
-    headset, a few millimetres short of it. Fingers farther away (the reference's unused
-    fingers) keep their place. (No press past the surface here: a reference grasp's pads on a
-    thin wall, a bowl's rim, would aim through it.)"""
+    onto it (closest point), and which were. Why: hand-built reference grasps touch the object
+    with whatever part of the finger met it first, so their pulp sites sit up to ~1.5 cm off
+    the surface; an operator grasping the object puts the finger *pads* on it. Fingers
+    farther away (the reference's unused fingers) keep their place. (No press past the
+    surface here: a reference grasp's pads on a thin wall, a bowl's rim, would aim through
+    it.)"""
     from sim.world.objects import load_object
 
     mesh = load_object(object_name).surface_mesh()
     tips_obj = palm_pos_obj + tips_palm @ palm_rot_obj.T
-    closest, signed, normals = closest_surface_frames(mesh, tips_obj)
+    closest, signed = closest_surface_points(mesh, tips_obj)
     snap = np.abs(signed) <= max_gap_m
-    if standoff_m is not None:
-        closest = closest + np.asarray(standoff_m, float)[:, None] * normals
     tips_obj = np.where(snap[:, None], closest, tips_obj)
     logger.info("reference pulp sites off the surface (m): %s; snapped: %s",
                 np.round(signed, 4).tolist(), snap.tolist())
-    return (tips_obj - palm_pos_obj) @ palm_rot_obj
+    return (tips_obj - palm_pos_obj) @ palm_rot_obj, snap
+
+
+def _pad_short_of_surface(tip_wrist: Array, corr: Correspondence, wrist_pos: Array,
+                          wrist_rot: Array, object_name: str, obj_pos: Array, obj_rot: Array,
+                          out_m: float) -> Array:
+    """An operator fingertip target (wrist frame) moved to ``out_m`` (metres: standoff plus the
+    tip's radius) outside the object's surface along the normal at the surface point nearest
+    to it. Why: the retargeter's fingertip scale maps a robot pad on the surface back to an
+    operator tip millimetres *inside* the object (a human hand is larger than the robot's);
+    a person's tracked pads stop short of a virtual object instead."""
+    from sim.world.objects import load_object
+
+    mesh = load_object(object_name).surface_mesh()
+    world = corr.world_of_tracking(wrist_pos + wrist_rot @ tip_wrist)
+    closest, _, normal = closest_surface_frames(mesh, ((world - obj_pos) @ obj_rot)[None])
+    out = obj_pos + obj_rot @ (closest[0] + out_m * normal[0])
+    return wrist_rot.T @ (corr.tracking_of_world(out) - wrist_pos)
 
 
 def _fill_unmapped(pose: HandPose, mapped_joints: Iterable[str]) -> None:
@@ -177,7 +184,7 @@ def _fill_unmapped(pose: HandPose, mapped_joints: Iterable[str]) -> None:
 
 def _generic_grasp(robot: Hand, human: HumanHand, corr: Correspondence, scale: float,
                    object_name: str, obj_pos: Array, obj_rot: Array,
-                   press_m: float | Array, grip_friction: float
+                   press_m: float, standoff_m: Array | None, grip_friction: float
                    ) -> tuple[Array, Array, HandPose, dict[str, float]]:
     """The searched generic grasp (:func:`teleop.synthetic.grasp_search.search_grasp`) as an
     operator wrist pose and hand pose; residuals: the mapped tips' signed surface distances
@@ -187,7 +194,8 @@ def _generic_grasp(robot: Hand, human: HumanHand, corr: Correspondence, scale: f
     asset = load_object(object_name)
     mesh = asset.surface_mesh()
     found = search_grasp(robot, human, corr, scale, mesh, obj_pos, obj_rot, press_m,
-                         com_m=obj_pos + obj_rot @ asset.com_m, friction=grip_friction)
+                         com_m=obj_pos + obj_rot @ asset.com_m, friction=grip_friction,
+                         standoff_m=standoff_m)
     wrist_pos, wrist_rot = corr.wrist_for_palm(found.palm_pos_m, found.palm_rot)
     pose = found.pose
     _fill_unmapped(pose, corr.mapping.fingers.values())

@@ -9,10 +9,12 @@ near the object and closes every finger until the object stops it. The search do
 with the human hand model: for each candidate wrist placement it closes each finger along
 the open → power-grasp path (:meth:`HandPose.relaxed` → :meth:`HandPose.power`) to the first
 level whose *mapped* tip (through the retargeter's wrist correspondence and fingertip scale,
-:class:`teleop.synthetic.correspondence.Correspondence`) lies ``press_m`` past the surface
-(one depth for all fingers, or one per finger; negative: that far short of it, a person's
-standoff), and scores the placement by how well the thumb and an opposing finger reach that depth, with
-the other fingers touching as a bonus. Placements where the robot palm box (``[palm]`` of the
+:class:`teleop.synthetic.correspondence.Correspondence`) lies ``press_m`` past the surface —
+or, as a person does, whose *own* pad (the tip joint less its radius) stops a standoff short
+of it (``standoff_m``, per finger: tracked fingertips stop 3–8 mm off a virtual object; the
+robot's pads then come onto it only if the retargeter brings them there) — and scores the
+placement by how well the thumb and an opposing finger reach that depth, with the other
+fingers touching as a bonus. Placements where the robot palm box (``[palm]`` of the
 hand config, frame_palm) would enter the object or the table, where the open hand already
 goes into the object, or where a robot finger's links (its pad aside) go into it at the
 grasp, are rejected.
@@ -90,9 +92,9 @@ _WEIGHT = np.array([0.0, 0.0, -1.0, 0.0, 0.0, 0.0])
 @dataclass(frozen=True)
 class GenericGrasp:
     """The search's choice: frame_palm in the world (palm_pos_m, palm_rot), the hand pose,
-    per human finger the signed distance of its mapped tip to the surface (``surface_m``,
-    metres, negative inside), which fingers touch, the score (metres-like; lower is
-    better) and the grip ratio (total normal force per newton of weight with which the
+    per human finger the signed distance of its mapped tip (with a standoff: of its own pad)
+    to the surface (``surface_m``, metres, negative inside), which fingers touch, the score
+    (metres-like; lower is better) and the grip ratio (total normal force per newton of weight with which the
     touching fingertips hold the object up; inf where no fitting placement could within
     :data:`_MAX_GRIP_RATIO` and the best-fitting one was taken)."""
 
@@ -206,9 +208,13 @@ class _Scored:
 
 
 def _score(robot: Hand, human: HumanHand, corr: Correspondence, scale: float, sdf: _Sdf,
-           table_z: float, pos: Array, rots: Array, press_m: float | Array) -> _Scored:
+           table_z: float, pos: Array, rots: Array, press_m: float,
+           standoff_m: Array | None) -> _Scored:
     """Every placement, each finger closed along the open → power-grasp path to its level, its
-    cost and rejections (module docstring)."""
+    cost and rejections (module docstring). ``standoff_m`` (per finger, FINGERS order): the
+    levels are where the operator's own pads (tip joint less its radius) stop that far short
+    of the surface, and the touch points are the surface below them; None: where the mapped
+    robot tips lie ``press_m`` past it."""
     poses = [lerp_pose(HandPose.relaxed(), HandPose.power(), float(s)) for s in _LEVELS]
     joints = np.array([human.joints_in_wrist(p)[0] for p in poses])
     mapped = corr.p_pw + scale * joints @ corr.r_pw.T
@@ -218,10 +224,22 @@ def _score(robot: Hand, human: HumanHand, corr: Correspondence, scale: float, sd
     tip_idx = [JOINT_INDEX[f"{f}_tip"] for f in FINGERS]
     reach, links = _reachable(robot, corr, mapped[:, tip_idx])             # (L, 5, 3)
     reach_w = pos[:, None, None] + np.einsum("nij,lkj->nlki", rots, reach)  # (N, L, 5, 3)
-    tip_sd, tip_normals = sdf(reach_w)
+    clear = np.full(len(pos), True)
+    if standoff_m is None:
+        tip_sd, tip_normals = sdf(reach_w)
+        points = reach_w
+        err = tip_sd + np.asarray(press_m, float)                          # (N, L, 5)
+    else:   # the operator's own pads, not where the retargeter will put the robot's
+        human_palm = corr.p_pw + joints[:, tip_idx] @ corr.r_pw.T                 # (L, 5, 3)
+        human_w = pos[:, None, None] + np.einsum("nij,lkj->nlki", rots, human_palm)
+        tip_sd, tip_normals = sdf(human_w)
+        points = human_w - tip_sd[..., None] * tip_normals   # the surface below each pad
+        err = tip_sd - human.radii[tip_idx] - np.asarray(standoff_m, float)
+        # nor does a person's open hand reach into the object it sees
+        open_w = pos[:, None] + np.einsum("nij,kj->nki", rots, corr.p_pw + joints[0] @ corr.r_pw.T)
+        clear = (sdf(open_w)[0] - human.radii).min(axis=1) > 0.0
     n_pl, n_lv = len(pos), len(_LEVELS)
-    err = tip_sd + np.asarray(press_m, float)                              # (N, L, 5)
-    # each finger closes to the first level whose tip is press_m inside, or fully
+    # each finger closes to the first level whose tip reaches the wanted depth, or fully
     reached = err <= 0.0
     first = np.where(reached.any(axis=1), np.argmax(reached, axis=1), n_lv - 1)   # (N, 5)
     prev = np.maximum(first - 1, 0)
@@ -249,11 +267,11 @@ def _score(robot: Hand, human: HumanHand, corr: Correspondence, scale: float, sd
     palm_w = pos[:, None] + np.einsum("nij,kj->nki", rots, box)
     ok = ((sdf(palm_w)[0].min(axis=1) > _PALM_CLEAR_M)
           & (palm_w[..., 2].min(axis=1) > table_z + _TABLE_CLEAR_M)
-          & (-sdf(open_hand)[0].min(axis=1) < _OPEN_DEPTH_M)
+          & (-sdf(open_hand)[0].min(axis=1) < _OPEN_DEPTH_M) & clear
           & (link_depth.max(axis=1) < _LINK_DEPTH_M)
           & (open_hand[..., 2].min(axis=1) > table_z + _TABLE_CLEAR_M)
           & (finger_z.min(axis=1) > table_z + _TABLE_CLEAR_M))
-    return _Scored(poses=poses, level=level, err=err, points=reach_w[pick], normals=tip_n,
+    return _Scored(poses=poses, level=level, err=err, points=points[pick], normals=tip_n,
                    touch=touch, cost=np.where(ok, cost, np.inf))
 
 
@@ -266,19 +284,21 @@ def _grip_ratio(c: _Scored, i: int, com_m: Array, friction: float) -> float:
 
 
 def search_grasp(robot: Hand, human: HumanHand, corr: Correspondence, scale: float, mesh: Any,
-                 obj_pos: Array, obj_rot: Array, press_m: float | Array, com_m: Array,
-                 friction: float) -> GenericGrasp:
+                 obj_pos: Array, obj_rot: Array, press_m: float, com_m: Array,
+                 friction: float, standoff_m: Array | None = None) -> GenericGrasp:
     """The best generic grasp of ``mesh`` (object frame; the object at ``obj_pos``,
     ``obj_rot`` in the world, resting on a table at its lowest point, its centre of mass at
     ``com_m`` in the world) for robot hand ``robot`` driven by operator hand ``human``
     through ``corr`` with fingertip ``scale`` (module docstring). ``friction``: the sliding
-    friction the operator counts on to hold the object up."""
+    friction the operator counts on to hold the object up. ``standoff_m`` (per finger,
+    FINGERS order, metres): the operator's pads stop that far short of the surface
+    (``press_m`` is then unused)."""
     verts = np.asarray(mesh.vertices) @ obj_rot.T + obj_pos
     sdf = _Sdf(verts, np.asarray(mesh.vertex_normals) @ obj_rot.T)
     table_z = float(verts[:, 2].min())
     lo, hi = verts.min(axis=0), verts.max(axis=0)
     pos, rots = _placements(verts, 0.5 * (lo + hi), _frames())
-    c = _score(robot, human, corr, scale, sdf, table_z, pos, rots, press_m)
+    c = _score(robot, human, corr, scale, sdf, table_z, pos, rots, press_m, standoff_m)
     order = np.argsort(c.cost, kind="stable")
     order = order[np.isfinite(c.cost[order])]
     if not len(order):
@@ -295,8 +315,9 @@ def search_grasp(robot: Hand, human: HumanHand, corr: Correspondence, scale: flo
     pose = HandPose.from_vector(np.concatenate(
         [c.poses[level[0]].thumb, *(c.poses[level[k + 1]].fingers[f]
                                     for k, f in enumerate(LONG_FINGERS))]))
-    press = np.broadcast_to(np.asarray(press_m, float), (len(FINGERS),))
-    surface = {f: float(c.err[i, level[k], k] - press[k]) for k, f in enumerate(FINGERS)}
+    wanted = np.broadcast_to(-press_m if standoff_m is None else np.asarray(standoff_m, float),
+                             (len(FINGERS),))
+    surface = {f: float(c.err[i, level[k], k] + wanted[k]) for k, f in enumerate(FINGERS)}
     touching = tuple(f for k, f in enumerate(FINGERS) if c.touch[i, k])
     logger.info("generic grasp: %d of %d placements valid; cost %.4f (rank %d of the fitting), "
                 "grip ratio %.2f, palm normal %s, fingers %s, touching %s", len(order),

@@ -78,7 +78,7 @@ def synthesize(object_name: str, *, hand: Hand | str, seed: int = 0,
     standoff, cfg = _human_draws(cfg, seed)
     target = grasp_target(robot, human, corr, scale, object_name, obj_pos, obj_rot,
                           grasp_name=grasp_name, snap_m=cfg.tip_surface_snap_m,
-                          press_m=cfg.press_depth_m if standoff is None else -standoff,
+                          press_m=cfg.press_depth_m, standoff_m=standoff,
                           grip_friction=cfg.grip_friction)
 
     motion = GraspMotion.plan(cfg, target.wrist_pos_m, target.wrist_rot, target.palm_rot,
