@@ -42,9 +42,9 @@ contact stops the finger t in. The second factor leaves alone a target more than
 from the surface whatever the person's pad does: that robot finger is elsewhere (on the
 object's far side, under it while the hand reaches), and pulling it across would sweep the
 object away (measured: a reaching little finger lifted an apple 24 mm before the closure).
-g is C¹ in both distances and monotonic as the hand closes
-(f_p ≥ −p and W only rises). The target keeps its own nearest surface point (where the robot finger reaches
-the object); only its distance along the normal follows the person.
+g is C¹ in both distances and monotonic as the hand closes (f_p ≥ −p and W only rises). The
+target keeps its own nearest surface point (where the robot finger reaches the object); only
+its distance along the normal follows the person.
 
 Points and distances in metres, in whatever frame the surface was queried in.
 """

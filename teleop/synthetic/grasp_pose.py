@@ -82,9 +82,12 @@ def grasp_target(robot: Hand, human: HumanHand, corr: Correspondence, scale: flo
         palm_pos = obj_pos + obj_rot @ ref.grasp.palm_pos
         wrist_pos, wrist_rot = corr.wrist_for_palm(palm_pos, palm_rot)
         tips_palm = robot.fingertip_sites(ref.grasp.joints, frame="palm")[0]
+        from sim.world.objects import load_object
+
+        mesh = load_object(object_name).surface_mesh()
         snapped = np.zeros(len(tips_palm), bool)
         if snap_m > 0.0:
-            tips_palm, snapped = _snap_tips(tips_palm, object_name, ref.grasp.palm_pos,
+            tips_palm, snapped = _snap_tips(tips_palm, mesh, ref.grasp.palm_pos,
                                             quat_to_mat(ref.grasp.palm_quat_wxyz), snap_m)
         grasp_pose = HandPose.relaxed()
         for k, robot_finger in enumerate(robot.finger_names):
@@ -95,7 +98,7 @@ def grasp_target(robot: Hand, human: HumanHand, corr: Correspondence, scale: flo
             target = corr.operator_tip_for(tips_palm[k], scale)
             if standoff_m is not None and snapped[k]:
                 target = _pad_short_of_surface(
-                    target, corr, wrist_pos, wrist_rot, object_name, obj_pos, obj_rot,
+                    target, corr, wrist_pos, wrist_rot, mesh, obj_pos, obj_rot,
                     float(standoff_m[FINGERS.index(finger)]
                           + human.radii[JOINT_INDEX[f"{finger}_tip"]]))
             x, res = human.fit_finger(finger, target, grasp_pose)
@@ -132,18 +135,16 @@ def _reference_for(hand: Hand, object_name: str, grasp_name: str | None) -> Any:
     return None
 
 
-def _snap_tips(tips_palm: Array, object_name: str, palm_pos_obj: Array, palm_rot_obj: Array,
+def _snap_tips(tips_palm: Array, mesh: Any, palm_pos_obj: Array, palm_rot_obj: Array,
                max_gap_m: float) -> tuple[Array, Array]:
-    """Reference pulp sites (frame_palm) within ``max_gap_m`` of the object's surface moved
+    """Reference pulp sites (frame_palm) within ``max_gap_m`` of the object's surface ``mesh``
+    (object frame) moved
     onto it (closest point), and which were. Why: hand-built reference grasps touch the object
     with whatever part of the finger met it first, so their pulp sites sit up to ~1.5 cm off
     the surface; an operator grasping the object puts the finger *pads* on it. Fingers
     farther away (the reference's unused fingers) keep their place. (No press past the
     surface here: a reference grasp's pads on a thin wall, a bowl's rim, would aim through
     it.)"""
-    from sim.world.objects import load_object
-
-    mesh = load_object(object_name).surface_mesh()
     tips_obj = palm_pos_obj + tips_palm @ palm_rot_obj.T
     closest, signed = closest_surface_points(mesh, tips_obj)
     snap = np.abs(signed) <= max_gap_m
@@ -154,16 +155,13 @@ def _snap_tips(tips_palm: Array, object_name: str, palm_pos_obj: Array, palm_rot
 
 
 def _pad_short_of_surface(tip_wrist: Array, corr: Correspondence, wrist_pos: Array,
-                          wrist_rot: Array, object_name: str, obj_pos: Array, obj_rot: Array,
+                          wrist_rot: Array, mesh: Any, obj_pos: Array, obj_rot: Array,
                           out_m: float) -> Array:
     """An operator fingertip target (wrist frame) moved to ``out_m`` (metres: standoff plus the
-    tip's radius) outside the object's surface along the normal at the surface point nearest
-    to it. Why: the retargeter's fingertip scale maps a robot pad on the surface back to an
-    operator tip millimetres *inside* the object (a human hand is larger than the robot's);
-    a person's tracked pads stop short of a virtual object instead."""
-    from sim.world.objects import load_object
-
-    mesh = load_object(object_name).surface_mesh()
+    tip's radius) outside the object's surface ``mesh`` (object frame) along the normal at the
+    surface point nearest to it. Why: the retargeter's fingertip scale maps a robot pad on the
+    surface back to an operator tip millimetres *inside* the object (a human hand is larger
+    than the robot's); a person's tracked pads stop short of a virtual object instead."""
     world = corr.world_of_tracking(wrist_pos + wrist_rot @ tip_wrist)
     closest, _, normal = closest_surface_frames(mesh, ((world - obj_pos) @ obj_rot)[None])
     out = obj_pos + obj_rot @ (closest[0] + out_m * normal[0])
