@@ -106,9 +106,11 @@ def test_demo_grasps_lift_the_upright_can_with_the_arm(setup) -> None:
         stage = validator.stages(g)
         plan = plan_grasp(scene, p, r, stage.pregrasp, g.joints, q)
         if plan.failure is None:
-            at = scene.site_pose(scene.qpos(plan.approach[-1], g.joints))
+            at = scene.site_pose(scene.qpos(plan.approach[-1], plan.grasp_q))
             assert np.linalg.norm(at[0] - p) < 1e-3          # IK put frame_palm on the grasp
-            out = simulate_plan(scene, settled, plan, stage.pregrasp, stage.squeeze,
+            fingers = np.setdiff1d(np.arange(scene.hand.nq), scene.hand_ik_free)
+            assert np.array_equal(plan.grasp_q[fingers], np.asarray(g.joints)[fingers])
+            out = simulate_plan(scene, settled, plan, stage.squeeze,
                                 max_displacement_m=cfg.lift_drop.max_displacement_m,
                                 max_rotation_rad=cfg.lift_drop.max_rotation_rad)
             assert np.all(np.diff(out.times_s) >= 0) and np.allclose(out.arm_q_rad[0], scene.arm.home_rad)

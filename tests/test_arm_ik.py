@@ -5,6 +5,7 @@ naming the file and the key."""
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from pathlib import Path
 
@@ -156,3 +157,34 @@ def test_a_bad_mount_names_the_file_and_key(tmp_path: Path) -> None:
     bad.write_text(f"{head}[mount]{mount}")
     message = _one_line_error(r"mount\.quat_wxyz", load_hand_config, bad)
     assert str(bad) in message
+
+
+def test_the_mounts_free_wrist_joints_are_checked(tmp_path: Path, hand: Hand) -> None:
+    """``[mount] ik_free_joints``: a repeated name is refused on load, a joint the hand lacks
+    when the arm scene is built (it would silently stay frozen), both one line naming the key."""
+    text = (hand_dir(default_hand_name()) / "hand.toml").read_text()
+    assert re.search(r"(?m)^ik_free_joints = ", text)
+    bad = tmp_path / "hand.toml"
+    bad.write_text(re.sub(r"(?m)^ik_free_joints = .*$", 'ik_free_joints = ["rh_WRJ1", "rh_WRJ1"]',
+                          text, count=1))
+    assert str(bad) in _one_line_error(r"mount\.ik_free_joints", load_hand_config, bad)
+    mount = dataclasses.replace(hand.config.mount, ik_free_joints=("rh_WRJ3",))
+    wrong = Hand(dataclasses.replace(hand.config, mount=mount))
+    message = _one_line_error(r"ik_free_joints.*rh_WRJ3", ArmScene, load_arm_config("ur5e"), wrong)
+    assert str(hand.config.file) in message
+
+
+def test_a_free_wrist_moves_only_the_mounts_joints(scene: ArmScene, hand: Hand) -> None:
+    """With ``free_wrist`` the IK may bend the wrist, and only the wrist: the fingers stay the
+    grasp's exactly, frame_palm is on its target, and the wrist stays within its limits."""
+    pos, quat, _ = _random_reachable_target(scene, seed=3)
+    grasp_q = hand.posture("preshape_pose")
+    result = solve_palm_ik(scene, pos, quat, grasp_q, free_wrist=True)
+    assert result.reachable
+    got = result.q[scene.hand_qadr]
+    fingers = np.setdiff1d(np.arange(hand.nq), scene.hand_ik_free)
+    np.testing.assert_array_equal(got[fingers], grasp_q[fingers])
+    lo, hi = scene.lower[scene.hand_qadr], scene.upper[scene.hand_qadr]
+    assert np.all(got >= lo - 1e-6) and np.all(got <= hi + 1e-6)
+    frozen = solve_palm_ik(scene, pos, quat, grasp_q)
+    np.testing.assert_array_equal(frozen.q[scene.hand_qadr], grasp_q)

@@ -151,7 +151,7 @@ def _plan_and_simulate(scene: ArmScene, settled: mujoco.MjData, palm_pos: np.nda
         return ArmGraspResult(**base, failure=plan.failure, detail=plan.detail, plan_s=plan_s)
     assert plan.approach is not None   # a plan without a failure has its waypoints
     t0 = time.perf_counter()
-    sim = simulate_plan(scene, settled, plan, stage.pregrasp, stage.squeeze, timing=timing,
+    sim = simulate_plan(scene, settled, plan, stage.squeeze, timing=timing,
                         **limits)
     at_grasp = plan.ik[len(plan.approach) - 1]
     return ArmGraspResult(

@@ -2,12 +2,14 @@
 while the hand's joints stay at a grasp's joint vector.
 
 Why this shape: a grasp from the dataset fixes the fingers (joint vector) and the palm pose;
-only the arm is free. The hand's joints and the object's free joint are frozen exactly (mink's
-``DofFreezingTask`` passed as an equality constraint), a light posture task toward the arm's
-home resolves redundancy (the 7-DoF iiwa) and keeps the solution near a sensible elbow, joint
-limits and table collision avoidance (arm and hand geoms against the table) are QP
-inequalities. A target out of reach is not an error: the result says ``reachable=False`` and
-carries the residual errors, so a batch can count unreachable grasps instead of crashing.
+only the arm is free (and, when asked, the hand's wrist: the mount's ``ik_free_joints``, which
+lie between the flange and frame_palm). The other hand joints and the object's free joint are
+frozen exactly (mink's ``DofFreezingTask`` passed as an equality constraint), a light posture
+task toward the arm's home resolves redundancy (the 7-DoF iiwa) and keeps the solution near a
+sensible elbow, joint limits and table collision avoidance (arm and hand geoms against the
+table) are QP inequalities. A target out of reach is not an error: the result says
+``reachable=False`` and carries the residual errors, so a batch can count unreachable grasps
+instead of crashing.
 """
 
 from __future__ import annotations
@@ -83,9 +85,11 @@ class IKResult:
     table_clearance_m: float = float("inf")
 
 
-def _frozen_dofs(scene: ArmScene) -> list[int]:
-    """The dofs IK must not move: every hand joint and the object's free joint (6 dofs)."""
-    dofs = [int(d) for d in scene.hand_dadr]
+def _frozen_dofs(scene: ArmScene, free_wrist: bool) -> list[int]:
+    """The dofs IK must not move: every hand joint (but the mount's ``ik_free_joints`` when
+    ``free_wrist``) and the object's free joint (6 dofs)."""
+    free = set(scene.hand_ik_free.tolist()) if free_wrist else set()
+    dofs = [int(d) for i, d in enumerate(scene.hand_dadr) if i not in free]
     if scene.obj_dadr >= 0:
         dofs += list(range(scene.obj_dadr, scene.obj_dadr + 6))
     return dofs
@@ -101,10 +105,12 @@ def _errors(config: mink.Configuration, pos: np.ndarray, quat: np.ndarray) -> tu
 
 def solve_palm_ik(scene: ArmScene, palm_pos_m: np.ndarray, palm_quat_wxyz: np.ndarray,
                   hand_q: np.ndarray | None = None, *, q_start: np.ndarray | None = None,
-                  settings: IKSettings | None = None) -> IKResult:
+                  settings: IKSettings | None = None, free_wrist: bool = False) -> IKResult:
     """Arm joints that put frame_palm on (``palm_pos_m``, ``palm_quat_wxyz``) in the world
     with the hand's joints at ``hand_q`` (``Hand.joint_names`` order, the open pose when
-    None). Starts from ``q_start`` (a full qpos; the arm's home when None). Never raises for
+    None); with ``free_wrist`` the hand mount's ``ik_free_joints`` are solved too, from
+    ``hand_q``'s values within their limits (``q`` holds what was found). Starts from
+    ``q_start`` (a full qpos; the arm's home when None). Never raises for
     an unreachable target: see :class:`IKResult`; a ``hand_q`` of the wrong length is a
     GraspInputError. A start whose geoms are already inside the table stays stuck there (the
     collision limit only forbids going deeper), so start from a clear configuration."""
@@ -132,7 +138,7 @@ def solve_palm_ik(scene: ArmScene, palm_pos_m: np.ndarray, palm_quat_wxyz: np.nd
                 model, [([int(g) for g in geoms], [scene.table_geom])],
                 minimum_distance_from_collisions=margin,
                 collision_detection_distance=s.collision_detection_distance_m))
-    constraints = [mink.DofFreezingTask(model, dof_indices=_frozen_dofs(scene))]
+    constraints = [mink.DofFreezingTask(model, dof_indices=_frozen_dofs(scene, free_wrist))]
 
     pos_err, rot_err = _errors(config, pos, quat)
     iterations = 0
@@ -158,7 +164,11 @@ def solve_palm_ik(scene: ArmScene, palm_pos_m: np.ndarray, palm_quat_wxyz: np.nd
             break
     q = config.q.copy()
     clearance = scene.table_clearance_m(q)
-    q[scene.hand_qadr] = hand_q   # exact: the frozen dofs do not drift, but say so in the output
+    frozen = np.ones(len(hand_q), bool)
+    if free_wrist:
+        frozen[scene.hand_ik_free] = False
+    # exact: the frozen dofs do not drift, but say so in the output
+    q[scene.hand_qadr[frozen]] = hand_q[frozen]
     return IKResult(q=q, arm_q_rad=q[scene.arm_qadr].copy(), pos_err_m=pos_err, rot_err_rad=rot_err,
                     iterations=iterations,
                     reachable=bool(pos_err <= s.pos_tol_m and rot_err <= s.rot_tol_rad),

@@ -10,7 +10,16 @@ pregrasp is tried between the palm normal and straight up, then straight up (``r
 person coming down onto an object lying on a table does the same. Each waypoint is a
 whole-body IK solve (:func:`~sim.arm.ik.solve_palm_ik`) seeded by the one before, so
 consecutive configurations stay on one IK branch; the path from the arm's home to the
-pregrasp is a straight line in joint space. A plan fails with a reason:
+pregrasp is a straight line in joint space.
+
+The hand's joints on the way are the grasp's but for two things a person's hand does near a
+table (:func:`hand_for_approach`): the wrist (the hand mount's ``ik_free_joints``) bends as the
+IK finds it best at the grasp and is then held, so a palm facing down onto an object lying flat
+need not bring the forearm down to the table top; and the pregrasp's fingers open only as far
+as the table allows at the grasp (the pregrasp blended toward the grasp), since a fully opened
+thumb under a palm a few centimetres above the table would be in it. Measured on the flat
+screwdriver (UR5e, grasps made as it lies): the open thumb and index distal links were what
+came below the table top on the approach. A plan fails with a reason:
 ``unreachable`` (a waypoint's IK misses its pose by more than the tolerances) or ``collision``
 (a configuration along the way, sampled every ``check_step_rad`` of joint motion, brings the
 arm or the hand within ``min_clearance_m`` of the table). Units: metres, radians, seconds.
@@ -30,7 +39,7 @@ from sim.arm.ik import IKResult, IKSettings, solve_palm_ik
 from sim.arm.scene import ArmScene
 from sim.transforms import quat_to_mat
 
-__all__ = ["ApproachSettings", "ArmPlan", "plan_grasp"]
+__all__ = ["PREGRASP_OPENINGS", "ApproachSettings", "ArmPlan", "hand_for_approach", "plan_grasp"]
 
 
 @dataclass(frozen=True)
@@ -67,6 +76,10 @@ class ArmPlan:
     ik: tuple[IKResult, ...] = ()
     time_s: float = 0.0
     retreat: np.ndarray | None = None
+    #: the hand joints (``Hand.joint_names`` order, rad) on the way in and at the grasp
+    #: (:func:`hand_for_approach`); the simulation closes from the first
+    pregrasp_q: np.ndarray | None = None
+    grasp_q: np.ndarray | None = None
 
 
 def _object_clearance_m(scene: ArmScene, qpos: np.ndarray, cap_m: float = 0.05) -> float:
@@ -129,16 +142,54 @@ def plan_grasp(scene: ArmScene, palm_pos_m: np.ndarray, palm_quat_wxyz: np.ndarr
     The first direction that plans wins; when none does, the failure is the palm normal's."""
     s = settings or ApproachSettings()
     t0 = time.perf_counter()
+    pos = np.asarray(palm_pos_m, float)
+    pregrasp_q, grasp_q = hand_for_approach(scene, pos, palm_quat_wxyz, pregrasp_q, grasp_q, ik)
     normal = quat_to_mat(np.asarray(palm_quat_wxyz, float))[:, 1]   # frame_palm +y, toward the object
     first: ArmPlan | None = None
     for retreat in _retreats(normal, s):
-        plan = _plan_along(scene, np.asarray(palm_pos_m, float), palm_quat_wxyz, retreat,
-                           pregrasp_q, grasp_q, obj_qpos, s, ik)
+        plan = _plan_along(scene, pos, palm_quat_wxyz, retreat, pregrasp_q, grasp_q, obj_qpos, s, ik)
         if plan.failure is None:
-            return dataclasses.replace(plan, time_s=time.perf_counter() - t0)
+            first = plan
+            break
         first = first or plan
     assert first is not None
-    return dataclasses.replace(first, time_s=time.perf_counter() - t0)
+    return dataclasses.replace(first, time_s=time.perf_counter() - t0, pregrasp_q=pregrasp_q,
+                               grasp_q=grasp_q)
+
+
+#: how far the pregrasp's fingers open at the grasp, tried in order (1: the grasp's pregrasp,
+#: 0: the grasp's own joints): the first whose hand clears the table is used
+PREGRASP_OPENINGS = (1.0, 0.75, 0.5, 0.25, 0.0)
+
+
+def hand_for_approach(scene: ArmScene, palm_pos_m: np.ndarray, palm_quat_wxyz: np.ndarray,
+                      pregrasp_q: np.ndarray, grasp_q: np.ndarray, ik: IKSettings | None = None,
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """The hand joints (pregrasp, grasp) the arm brings to frame_palm at (``palm_pos_m``,
+    ``palm_quat_wxyz``): one IK solve at the grasp with the wrist free sets the mount's
+    ``ik_free_joints`` in both (kept as given when that solve misses the pose), and the
+    pregrasp's fingers are the most open of :data:`PREGRASP_OPENINGS` whose hand keeps the IK's
+    hand margin to the table there (when none does, the one farthest from it: the plan then
+    says whether that is enough).
+    Module docstring: why."""
+    pre, grasp = np.array(pregrasp_q, float), np.array(grasp_q, float)
+    free = scene.hand_ik_free
+    r = solve_palm_ik(scene, palm_pos_m, palm_quat_wxyz, grasp, settings=ik,
+                      free_wrist=len(free) > 0)
+    if not r.reachable:
+        return pre, grasp
+    wrist = r.q[scene.hand_qadr[free]]
+    pre[free], grasp[free] = wrist, wrist
+    margin = (ik or IKSettings()).hand_min_distance_m
+    best, best_clear = pre, -np.inf
+    for opening in PREGRASP_OPENINGS:
+        hand_q = grasp + opening * (pre - grasp)
+        clear = scene.table_clearance_m(scene.qpos(r.arm_q_rad, hand_q))
+        if clear >= margin:
+            return hand_q, grasp
+        if clear > best_clear:
+            best, best_clear = hand_q, clear
+    return best, grasp
 
 
 def _plan_along(scene: ArmScene, pos: np.ndarray, palm_quat_wxyz: np.ndarray,

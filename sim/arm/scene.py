@@ -165,6 +165,7 @@ class ArmScene:
         self.arm_dadr = np.array([m.joint(ARM_PREFIX + j).dofadr[0] for j in self.arm.joints])
         self.hand_qadr = np.array([m.joint(HAND_PREFIX + j).qposadr[0] for j in self.hand.joint_names])
         self.hand_dadr = np.array([m.joint(HAND_PREFIX + j).dofadr[0] for j in self.hand.joint_names])
+        self.hand_ik_free = self._ik_free_joints()
         names = [m.body(b).name for b in range(m.nbody)]
         arm_bodies = np.array([n.startswith(ARM_PREFIX) for n in names])
         hand_bodies = np.array([n.startswith(HAND_PREFIX) for n in names])
@@ -181,6 +182,17 @@ class ArmScene:
             self.obj_qadr = self.obj_dadr = -1
         self.lower = m.jnt_range[:, 0]  # joint limits (rad / m) of every joint, for clipping
         self.upper = m.jnt_range[:, 1]
+
+    def _ik_free_joints(self) -> np.ndarray:
+        """Indices (``Hand.joint_names`` order) of the mount's ``ik_free_joints``, each checked
+        against the hand's joints (a misspelt one would silently stay frozen)."""
+        mount = self.hand.config.mount
+        assert mount is not None   # __init__ refused a hand without one
+        unknown = [j for j in mount.ik_free_joints if j not in self.hand.joint_names]
+        if unknown:
+            raise ConfigError(f"{self.hand.config.file}: [mount] ik_free_joints: expected joints "
+                              f"of the hand, got unknown {unknown}")
+        return np.array([self.hand.joint_names.index(j) for j in mount.ik_free_joints], int)
 
     # ---------------------------------------------------------------------------- joint vectors
 

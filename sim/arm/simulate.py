@@ -4,12 +4,13 @@ The paper's hand–arm check (§5.3): "the IK solutions with grasp poses are sim
 validity is assessed based on changes in the object pose after grasping". The arm's position
 servos follow the plan's joint targets, linearly interpolated between its keyframes (home →
 pregrasp → the approach waypoints → the grasp; closing; the lift), while the hand's servos hold
-the pregrasp and then ramp to the squeeze (the same pregrasp/squeeze the hand-only validator
-makes, :meth:`~sim.validate.validator.Validator.stages`). Verdict, with the lift-drop limits of
-``configs/validate.toml``: ``pushed`` when the object moved more than the displacement limit
-before the fingers closed, ``dropped`` when it rose less than half the lift, ``slipped`` when its
-pose in frame_palm changed by more than the limits between the end of closing and the end of
-the hold; else it holds. Units: metres, radians, seconds.
+the plan's pregrasp and then ramp to the squeeze (the pregrasp/squeeze the hand-only validator
+makes, :meth:`~sim.validate.validator.Validator.stages`, with the wrist and the pregrasp's
+opening as the plan set them near the table: :func:`sim.arm.plan.hand_for_approach`).
+Verdict, with the lift-drop limits of ``configs/validate.toml``: ``pushed`` when the object
+moved more than the displacement limit before the fingers closed, ``dropped`` when it rose less
+than half the lift, ``slipped`` when its pose in frame_palm changed by more than the limits
+between the end of closing and the end of the hold; else it holds. Units: metres, radians, seconds.
 """
 
 from __future__ import annotations
@@ -116,12 +117,19 @@ def _schedule(plan: ArmPlan, t: ArmTiming) -> tuple[np.ndarray, np.ndarray]:
     return np.array(times), np.array(keys)
 
 
-def simulate_plan(scene: ArmScene, settled: mujoco.MjData, plan: ArmPlan, pregrasp_q: np.ndarray,
-                  squeeze_q: np.ndarray, *, max_displacement_m: float, max_rotation_rad: float,
+def simulate_plan(scene: ArmScene, settled: mujoco.MjData, plan: ArmPlan, squeeze_q: np.ndarray,
+                  *, max_displacement_m: float, max_rotation_rad: float,
                   timing: ArmTiming | None = None) -> ArmOutcome:
-    """Simulate ``plan`` (successful) from a copy of ``settled`` (module docstring)."""
+    """Simulate ``plan`` (successful) from a copy of ``settled`` (module docstring): the
+    fingers close from the plan's pregrasp to ``squeeze_q`` (the grasp's squeeze), the wrist
+    held where the plan bent it."""
     if plan.failure is not None:
         raise ValueError(f"simulate_plan: the plan failed ({plan.failure}); nothing to simulate")
+    # a successful plan has its hand joints
+    assert plan.pregrasp_q is not None and plan.grasp_q is not None
+    free = scene.hand_ik_free
+    pregrasp_q, squeeze_q = plan.pregrasp_q, np.array(squeeze_q, float)
+    squeeze_q[free] = plan.grasp_q[free]
     t = timing or ArmTiming()
     m = scene.model
     d = mujoco.MjData(m)

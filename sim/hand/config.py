@@ -77,10 +77,18 @@ class Mount:
     """``[mount]``: where the hand sits on an arm. The pose (``pos`` metres, ``quat_wxyz``) of
     the hand model's base frame (the frame ``Hand.body_poses`` reports in) in a generic flange
     frame whose +z is the tool axis pointing out of the arm, so one hand config fits any arm
-    whose flange site follows that convention (:mod:`sim.arm.scene`)."""
+    whose flange site follows that convention (:mod:`sim.arm.scene`).
+
+    ``ik_free_joints`` (optional) names the hand joints between the mount and the palm (a
+    wrist) that the arm's IK may set at a grasp (:mod:`sim.arm.plan`): the fingers stay the
+    grasp's and frame_palm is downstream of them, so the grasp is unchanged, but a palm facing
+    down onto an object lying flat otherwise needs the forearm level with the table top
+    (measured on the flat screwdriver: the UR5e's wrist held off the table), where a person
+    bends the wrist and raises the forearm."""
 
     pos: np.ndarray
     quat_wxyz: np.ndarray
+    ik_free_joints: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -153,8 +161,12 @@ def _mount(root: Section) -> Mount | None:
     if "mount" not in root:
         return None
     sec = root.section("mount")
-    sec.reject_unknown({"pos", "quat_wxyz"})
-    return Mount(pos=np.array(sec.floats("pos", 3)), quat_wxyz=_unit_quat(sec, "quat_wxyz"))
+    sec.reject_unknown({"pos", "quat_wxyz", "ik_free_joints"})
+    free = tuple(sec.strs("ik_free_joints", []))
+    if len(set(free)) != len(free):
+        raise sec.error("ik_free_joints", "expected each joint name once")
+    return Mount(pos=np.array(sec.floats("pos", 3)), quat_wxyz=_unit_quat(sec, "quat_wxyz"),
+                 ik_free_joints=free)
 
 
 def _formats(root: Section) -> dict[str, HandFormat]:
