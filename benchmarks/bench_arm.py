@@ -18,7 +18,10 @@ object upright only (as the demos recorded it). The rows go to a record as well
 
     .venv/bin/python benchmarks/bench_arm.py [--objects 005_tomato_soup_can ...] [--n 50]
         [--placements 20] [--arms ur5e kuka_iiwa_14] [--modes carried as-it-lies] [--upright]
-        [--images DIR] [--quick]
+        [--images DIR] [--seed 0] [--quick]
+
+``--seed`` draws the placements and seeds the grasps made as it lies (their FSG seed is
+``seed`` + the resting pose's index): another seed is a held-out repeat of the same run.
 
 ``--quick``: the soup can, n = 8, 4 placements, the UR5e, carried only (a smoke run).
 """
@@ -105,6 +108,8 @@ def main() -> None:
                         help="also the carried grasps with the object upright only")
     parser.add_argument("--images", type=Path, help="write the first held grasp of each row as "
                         "<mode>_<arm>_<object>.png here (the paper's Fig. 12)")
+    parser.add_argument("--seed", type=int, default=0,
+                        help="placements and as-it-lies grasps (default: %(default)s)")
     parser.add_argument("--quick", action="store_true", help="one object and arm, small (smoke run)")
     args = parser.parse_args()
     if args.quick:
@@ -123,7 +128,8 @@ def main() -> None:
             hand, obj = Hand.load(demo.hand), load_object(name)
             sources: dict[str, GraspSource] = {
                 "carried": grasps,
-                "as-it-lies": RestGrasps(hand, obj, demo, n=args.n, workers=default_workers())}
+                "as-it-lies": RestGrasps(hand, obj, demo, n=args.n, seed=args.seed,
+                                         workers=default_workers())}
             for mode in args.modes:
                 making_s = 0.0
                 for arm in args.arms:
@@ -135,7 +141,7 @@ def main() -> None:
                             source(k, pose)
                         making_s = time.perf_counter() - t_make
                     _, res = evaluate_on_arm(load_arm_config(arm), hand, obj, source,
-                                             placements=args.placements, seed=0)
+                                             placements=args.placements, seed=args.seed)
                     wall = time.perf_counter() - t0
                     rows.append(stats(mode, arm, name, res, args.placements, wall, making_s))
                     print(row(rows[-1]), flush=True)
@@ -149,7 +155,8 @@ def main() -> None:
             for arm in args.arms:
                 t0 = time.perf_counter()
                 _, up = evaluate_on_arm(load_arm_config(arm), hand, obj, grasps,
-                                        placements=args.placements, seed=0, rest_index=upright)
+                                        placements=args.placements, seed=args.seed,
+                                        rest_index=upright)
                 upright_rows.append(stats("carried, upright", arm, name, up, args.placements,
                                           time.perf_counter() - t0, 0.0))
     if upright_rows:
